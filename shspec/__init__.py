@@ -1,0 +1,10 @@
+"""shspec: spectral geometry of genus-0 surfaces g = ρ·g₀ in the spherical-harmonic basis and on triangle meshes."""
+
+from .errors import *  # noqa: F401,F403
+from .errors import __all__ as _errors_all
+from .harmonics import cilm_to_vector, degree_order, flat_index, ncoeffs, vector_to_cilm, vector_to_shcoeffs
+
+__version__ = "0.1.0"
+
+__all__ = [*_errors_all, "cilm_to_vector", "degree_order", "flat_index", "ncoeffs", "vector_to_cilm",
+           "vector_to_shcoeffs", "__version__"]

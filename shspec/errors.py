@@ -1,0 +1,72 @@
+"""The exception hierarchy of shspec.
+
+Every error raised on purpose by shspec is a subclass of :class:`ShspecError`, so that a caller can catch the
+library's complaints without catching programming errors (``TypeError`` from a typo, say).  Each subclass also
+derives from the built-in exception a Python user would expect (``ValueError`` for bad values, ``OSError`` for
+the file system), so existing ``except ValueError`` code keeps working.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "ShspecError",
+    "InvalidArgumentError",
+    "BandLimitError",
+    "ConventionError",
+    "NotPositiveError",
+    "CacheError",
+    "CorruptTableError",
+    "TableMismatchError",
+    "CacheLocationError",
+    "MeshError",
+    "ConvergenceError",
+    "CheckpointError",
+]
+
+
+class ShspecError(Exception):
+    """Base class of every error shspec raises on purpose."""
+
+
+class InvalidArgumentError(ShspecError, ValueError):
+    """An argument has the wrong shape, type, sign or value (NaN, inf, out of range)."""
+
+
+class BandLimitError(InvalidArgumentError):
+    """A band limit is negative, absurd, or larger than what is available (a table, a basis)."""
+
+
+class ConventionError(InvalidArgumentError):
+    """Coefficients in another normalization or phase convention than shspec's (ortho, csphase=1)."""
+
+
+class NotPositiveError(InvalidArgumentError):
+    """A conformal factor that is not positive everywhere: it is not a metric, and the mass matrix is not SPD."""
+
+
+class CacheError(ShspecError, OSError):
+    """Reading or writing the table cache failed."""
+
+
+class CorruptTableError(CacheError):
+    """A cached table is truncated, fails its checksum, or does not follow the schema."""
+
+
+class TableMismatchError(CacheError):
+    """A cached table is valid but not the one asked for (format version, band limits, convention)."""
+
+
+class CacheLocationError(CacheError):
+    """The cache directory cannot be used: it is a file, read-only, or the disk is full."""
+
+
+class MeshError(InvalidArgumentError):
+    """A triangle mesh that shspec cannot use (open, non-manifold, wrong genus, degenerate, ...)."""
+
+
+class ConvergenceError(ShspecError, RuntimeError):
+    """An iterative method did not reach its tolerance."""
+
+
+class CheckpointError(ShspecError, OSError):
+    """A checkpoint or result file cannot be written, read or resumed from."""
