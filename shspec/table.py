@@ -1,0 +1,458 @@
+"""Gaunt tables: every real Gaunt coefficient G_ijk = ∫ Y_i Y_j Y_k that the Galerkin mass matrix needs.
+
+For a basis band limit Lb (indices i, j) and a factor band limit La (index k) the table stores, for each pair of
+degrees l1 <= l2 <= min(Lb, l1 + La) and each pair of absolute orders (a, b) (with a <= b when l1 = l2), one or two
+*families* over l3: the complex Gaunt coefficients of the order pattern μ = (a, b, −a−b) ("sum") and, when a, b > 0,
+μ = (a, −b, b−a) ("difference"), for l3 = l3min, l3min + 2, …, min(l1 + l2, La).  Each stored value serves up to four
+real coefficients (the signs of m1 and m2; see :mod:`shspec.gaunt`), and only l1 <= l2 is stored, so a table holds
+about 1/8 of the structural nonzeros of G: 1.4e8 values for (Lb, La) = (100, 50) instead of 1.1e9.
+
+The layout is implicit: families follow a fixed loop order, so a table is fully described by (Lb, La) and its value
+array, and the offsets are recomputed on load.  Assembly, the gradient contraction and the Jacobian walk a *plan*:
+one entry per real pair (i <= j) and order m3, giving (i, j, m3, l3min, count, offset, factor); entries are grouped
+by the degree of i so that threads write disjoint rows of the upper triangle of M.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numba as nb
+import numpy as np
+
+from .errors import BandLimitError, InvalidArgumentError
+from .gaunt import order_factor
+from .harmonics import check_degree, ncoeffs
+from .wigner import family_into
+
+__all__ = ["GauntTable", "build_table", "table_size", "check_limits"]
+
+_INV_4PI = 1.0 / (4.0 * math.pi)
+
+
+def check_limits(lmax, lmax_factor) -> tuple[int, int]:
+    """Validate a pair of band limits (Lb for the basis, La for ρ); La may not exceed 2·Lb (G would vanish)."""
+    lmax = check_degree(lmax, "lmax (basis band limit Lb)", maximum=400)
+    lmax_factor = check_degree(lmax_factor, "lmax_factor (band limit La of rho)", maximum=400)
+    if lmax_factor > 2 * lmax:
+        raise BandLimitError(
+            f"lmax_factor = {lmax_factor} > 2*lmax = {2 * lmax}: degrees above 2*Lb cannot couple two basis "
+            "functions (the Gaunt coefficients vanish), so such a table would hold nothing more"
+        )
+    return lmax, lmax_factor
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# layout
+
+
+@nb.njit(cache=True, nogil=True)
+def _family_count(l1, l2, c, lmax_factor):
+    l3min = max(l2 - l1, c)
+    if (l1 + l2 + l3min) % 2 == 1:
+        l3min += 1
+    l3max = min(l1 + l2, lmax_factor)
+    if l3min > l3max:
+        return l3min, 0
+    return l3min, (l3max - l3min) // 2 + 1
+
+
+@nb.njit(cache=True, nogil=True)
+def _block_count(l1, l2, lmax_factor):
+    n = 0
+    for a in range(l1 + 1):
+        for b in range(a if l1 == l2 else 0, l2 + 1):
+            n += _family_count(l1, l2, a + b, lmax_factor)[1]
+            if a > 0 and b > 0:
+                n += _family_count(l1, l2, abs(a - b), lmax_factor)[1]
+    return n
+
+
+@nb.njit(cache=True)
+def _block_offsets(lmax, lmax_factor):
+    """Offsets (Lb+1, Lb+2) of the (l1, l2) blocks in the value array; row l1 ends at [l1, Lb+1]."""
+    off = np.zeros((lmax + 1, lmax + 2), dtype=np.int64)
+    pos = 0
+    for l1 in range(lmax + 1):
+        for l2 in range(l1, min(lmax, l1 + lmax_factor) + 1):
+            off[l1, l2] = pos
+            pos += _block_count(l1, l2, lmax_factor)
+        off[l1, lmax + 1] = pos
+    return off
+
+
+def table_size(lmax: int, lmax_factor: int) -> int:
+    """Number of stored values of the table (Lb, La)."""
+    lmax, lmax_factor = check_limits(lmax, lmax_factor)
+    return int(_block_offsets(lmax, lmax_factor)[lmax, lmax + 1])
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# building
+
+
+@nb.njit(cache=True, nogil=True)
+def _fill_row(l1, lmax, lmax_factor, off, values, w0, w):
+    for l2 in range(l1, min(lmax, l1 + lmax_factor) + 1):
+        pos = off[l1, l2]
+        jmin0 = family_into(l1, l2, 0, 0, w0)[0]
+        for a in range(l1 + 1):
+            for b in range(a if l1 == l2 else 0, l2 + 1):
+                for choice in range(2):
+                    if choice == 1 and (a == 0 or b == 0):
+                        continue
+                    mu2 = b if choice == 0 else -b
+                    l3min, cnt = _family_count(l1, l2, abs(a + mu2), lmax_factor)
+                    if cnt == 0:
+                        continue
+                    jmin = family_into(l1, l2, a, mu2, w)[0]
+                    for t in range(cnt):
+                        l3 = l3min + 2 * t
+                        pref = math.sqrt((2.0 * l1 + 1.0) * (2.0 * l2 + 1.0) * (2.0 * l3 + 1.0) * _INV_4PI)
+                        values[pos + t] = pref * w0[l3 - jmin0] * w[l3 - jmin]
+                    pos += cnt
+
+
+@nb.njit(cache=True, parallel=True)
+def _fill_rows(rows, lmax, lmax_factor, off, values):
+    for r in nb.prange(rows.size):
+        w0 = np.empty(2 * lmax + 1)
+        w = np.empty(2 * lmax + 1)
+        _fill_row(rows[r], lmax, lmax_factor, off, values, w0, w)
+
+
+def _balanced_rows(off: np.ndarray, lmax: int) -> np.ndarray:
+    """Degrees l1 ordered so that consecutive chunks of a parallel loop get similar amounts of work."""
+    work = np.diff(np.concatenate([[0], off[:, lmax + 1]]))
+    return np.argsort(-work, kind="stable").astype(np.int64)
+
+
+def build_table(lmax: int, lmax_factor: int, *, progress: bool = False) -> "GauntTable":
+    """Compute the Gaunt table for the basis band limit ``lmax`` (Lb) and the factor band limit ``lmax_factor`` (La).
+
+    Parameters
+    ----------
+    lmax : int
+        Basis band limit Lb; the basis has (Lb+1)**2 functions.
+    lmax_factor : int
+        Band limit La of the conformal factor ρ, 0 <= La <= 2·Lb.
+    progress : bool
+        Show a tqdm progress bar (over degrees l1, weighted by their number of values).
+
+    Returns
+    -------
+    GauntTable
+    """
+    lmax, lmax_factor = check_limits(lmax, lmax_factor)
+    off = _block_offsets(lmax, lmax_factor)
+    total = int(off[lmax, lmax + 1])
+    values = np.empty(total)
+    rows = _balanced_rows(off, lmax)
+    if not progress:
+        _fill_rows(rows, lmax, lmax_factor, off, values)
+    else:
+        from tqdm.auto import tqdm
+
+        work = np.diff(np.concatenate([[0], off[:, lmax + 1]]))
+        nchunks = min(rows.size, 20)
+        with tqdm(total=total, unit="val", unit_scale=True, desc=f"Gaunt table ({lmax},{lmax_factor})") as bar:
+            for chunk in np.array_split(rows, nchunks):
+                _fill_rows(chunk, lmax, lmax_factor, off, values)
+                bar.update(int(work[chunk].sum()))
+    return GauntTable(lmax, lmax_factor, values)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# the plan: one entry per real pair (i <= j) and order m3
+
+
+@nb.njit(cache=True)
+def _plan_row(l1, lmax, lmax_factor, off, fill, ei, ej, em3, el3, ecnt, eoff, efac, start):
+    """Count (fill=False) or write (fill=True) the plan entries of row degree l1 from position ``start``."""
+    n = start
+    for l2 in range(l1, min(lmax, l1 + lmax_factor) + 1):
+        pos = off[l1, l2]
+        for a in range(l1 + 1):
+            for b in range(a if l1 == l2 else 0, l2 + 1):
+                for choice in range(2):
+                    if choice == 1 and (a == 0 or b == 0):
+                        continue
+                    mu2 = b if choice == 0 else -b
+                    mu3 = -(a + mu2)
+                    c = abs(mu3)
+                    l3min, cnt = _family_count(l1, l2, c, lmax_factor)
+                    if cnt == 0:
+                        continue
+                    for s1 in range(2 if a > 0 else 1):
+                        m1 = a if s1 == 0 else -a
+                        for s2 in range(2 if b > 0 else 1):
+                            m2 = b if s2 == 0 else -b
+                            for s3 in range(2 if c > 0 else 1):
+                                m3 = c if s3 == 0 else -c
+                                f = order_factor(m1, m2, m3, a, mu2, mu3)
+                                if abs(f) < 0.25:
+                                    continue
+                                i = l1 * l1 + l1 + m1
+                                j = l2 * l2 + l2 + m2
+                                if i > j:
+                                    if l1 == l2 and a == b:
+                                        continue  # its mirror (j, i) is in this same family
+                                    i, j = j, i
+                                if fill:
+                                    ei[n] = i
+                                    ej[n] = j
+                                    em3[n] = m3
+                                    el3[n] = l3min
+                                    ecnt[n] = cnt
+                                    eoff[n] = pos
+                                    efac[n] = f
+                                n += 1
+                    pos += cnt
+    return n
+
+
+@nb.njit(cache=True)
+def _make_plan(lmax, lmax_factor, off):
+    starts = np.zeros(lmax + 2, dtype=np.int64)
+    dummy_i = np.empty(0, dtype=np.int32)
+    dummy_f = np.empty(0)
+    dummy_o = np.empty(0, dtype=np.int64)
+    for l1 in range(lmax + 1):
+        starts[l1 + 1] = _plan_row(l1, lmax, lmax_factor, off, False, dummy_i, dummy_i, dummy_i, dummy_i, dummy_i,
+                                   dummy_o, dummy_f, starts[l1])
+    n = starts[lmax + 1]
+    ei = np.empty(n, dtype=np.int32)
+    ej = np.empty(n, dtype=np.int32)
+    em3 = np.empty(n, dtype=np.int32)
+    el3 = np.empty(n, dtype=np.int32)
+    ecnt = np.empty(n, dtype=np.int32)
+    eoff = np.empty(n, dtype=np.int64)
+    efac = np.empty(n)
+    for l1 in range(lmax + 1):
+        _plan_row(l1, lmax, lmax_factor, off, True, ei, ej, em3, el3, ecnt, eoff, efac, starts[l1])
+    return starts, ei, ej, em3, el3, ecnt, eoff, efac
+
+
+@dataclass(frozen=True)
+class _Plan:
+    starts: np.ndarray  # (Lb+2,) int64, entries of row degree l1 are starts[l1]:starts[l1+1]
+    i: np.ndarray  # (E,) int32
+    j: np.ndarray  # (E,) int32, i <= j
+    m3: np.ndarray  # (E,) int32
+    l3min: np.ndarray  # (E,) int32
+    count: np.ndarray  # (E,) int32
+    offset: np.ndarray  # (E,) int64 into the value array
+    factor: np.ndarray  # (E,) float64
+
+    @property
+    def arrays(self):
+        return (self.starts, self.i, self.j, self.m3, self.l3min, self.count, self.offset, self.factor)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# kernels
+
+
+@nb.njit(cache=True, parallel=True)
+def _assemble_upper(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, coef, out):
+    for r in nb.prange(rows.size):
+        l1 = rows[r]
+        for e in range(starts[l1], starts[l1 + 1]):
+            m3 = em3[e]
+            l3 = el3[e]
+            base = eoff[e]
+            acc = 0.0
+            for t in range(ecnt[e]):
+                acc += values[base + t] * coef[l3 * l3 + l3 + m3]
+                l3 += 2
+            out[ei[e], ej[e]] += efac[e] * acc
+
+
+@nb.njit(cache=True, parallel=True)
+def _contract(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, bmat, nfactor):
+    part = np.zeros((rows.size, nfactor))
+    for r in nb.prange(rows.size):
+        l1 = rows[r]
+        g = part[r]
+        for e in range(starts[l1], starts[l1 + 1]):
+            i = ei[e]
+            j = ej[e]
+            bij = bmat[i, j] if i == j else bmat[i, j] + bmat[j, i]
+            w = efac[e] * bij
+            m3 = em3[e]
+            l3 = el3[e]
+            base = eoff[e]
+            for t in range(ecnt[e]):
+                g[l3 * l3 + l3 + m3] += w * values[base + t]
+                l3 += 2
+    return part.sum(axis=0)
+
+
+@nb.njit(cache=True, parallel=True)
+def _quad_forms(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, vecs, nfactor):
+    # out[k, q] = v_qᵀ G_k v_q for each column q of vecs; rows of vecs are basis indices
+    nq = vecs.shape[1]
+    part = np.zeros((rows.size, nfactor, nq))
+    for r in nb.prange(rows.size):
+        l1 = rows[r]
+        p = np.empty(nq)
+        for e in range(starts[l1], starts[l1 + 1]):
+            i = ei[e]
+            j = ej[e]
+            w = efac[e] if i == j else 2.0 * efac[e]
+            for q in range(nq):
+                p[q] = w * vecs[i, q] * vecs[j, q]
+            m3 = em3[e]
+            l3 = el3[e]
+            base = eoff[e]
+            for t in range(ecnt[e]):
+                row = part[r, l3 * l3 + l3 + m3]
+                v = values[base + t]
+                for q in range(nq):
+                    row[q] += v * p[q]
+                l3 += 2
+    return part.sum(axis=0)
+
+
+@nb.njit(cache=True, parallel=True)
+def _restrict(rows, lmax, lmax_factor, off_small, big_factor, off_big, big_values, out):
+    for r in nb.prange(rows.size):
+        l1 = rows[r]
+        for l2 in range(l1, min(lmax, l1 + lmax_factor) + 1):
+            ps = off_small[l1, l2]
+            pb = off_big[l1, l2]
+            for a in range(l1 + 1):
+                for b in range(a if l1 == l2 else 0, l2 + 1):
+                    for choice in range(2):
+                        if choice == 1 and (a == 0 or b == 0):
+                            continue
+                        c = a + b if choice == 0 else abs(a - b)
+                        ns = _family_count(l1, l2, c, lmax_factor)[1]
+                        nbig = _family_count(l1, l2, c, big_factor)[1]
+                        for t in range(ns):
+                            out[ps + t] = big_values[pb + t]
+                        ps += ns
+                        pb += nbig
+
+
+# ---------------------------------------------------------------------------------------------------------------
+
+
+@dataclass(eq=False)
+class GauntTable:
+    """Real Gaunt coefficients for a basis band limit Lb and a factor band limit La.
+
+    Attributes
+    ----------
+    lmax : int
+        Lb: the basis holds the (Lb+1)**2 real harmonics of degree <= Lb (indices i, j).
+    lmax_factor : int
+        La: the conformal factor holds (La+1)**2 coefficients (index k).
+    values : (table_size(Lb, La),) float64 array
+        The stored families (see the module docstring for the layout).
+    path : pathlib.Path or None
+        File the table was loaded from, if any.
+    metadata : dict
+        Provenance (creation time, library version, checksum) when loaded from or saved to a file.
+    """
+
+    lmax: int
+    lmax_factor: int
+    values: np.ndarray
+    path: object = None
+    metadata: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.lmax, self.lmax_factor = check_limits(self.lmax, self.lmax_factor)
+        self.offsets = _block_offsets(self.lmax, self.lmax_factor)
+        expected = int(self.offsets[self.lmax, self.lmax + 1])
+        if self.values.shape != (expected,):
+            raise InvalidArgumentError(
+                f"a ({self.lmax},{self.lmax_factor}) Gaunt table holds {expected} values, got shape {self.values.shape}"
+            )
+        self._plan = None
+        self._rows = _balanced_rows(self.offsets, self.lmax)
+
+    def __repr__(self) -> str:
+        return (f"GauntTable(lmax={self.lmax}, lmax_factor={self.lmax_factor}, values={self.values.size}, "
+                f"{self.values.nbytes / 2**20:.1f} MiB)")
+
+    @property
+    def nbasis(self) -> int:
+        """Number of basis functions N = (Lb+1)**2."""
+        return ncoeffs(self.lmax)
+
+    @property
+    def nfactor(self) -> int:
+        """Number of factor coefficients (La+1)**2."""
+        return ncoeffs(self.lmax_factor)
+
+    @property
+    def plan(self) -> _Plan:
+        """The entry list the kernels walk; built on first use (about 30 bytes per real (i<=j, m3) pair)."""
+        if self._plan is None:
+            self._plan = _Plan(*_make_plan(self.lmax, self.lmax_factor, self.offsets))
+        return self._plan
+
+    def covers(self, lmax: int, lmax_factor: int) -> bool:
+        """True when this table can serve the limits (Lb, La), i.e. holds at least as much."""
+        return lmax <= self.lmax and lmax_factor <= self.lmax_factor
+
+    def restrict(self, lmax: int, lmax_factor: int) -> "GauntTable":
+        """The table for smaller limits (Lb, La), extracted from this one without recomputation."""
+        lmax, lmax_factor = check_limits(lmax, lmax_factor)
+        if not self.covers(lmax, lmax_factor):
+            raise BandLimitError(
+                f"a ({self.lmax},{self.lmax_factor}) table cannot serve ({lmax},{lmax_factor})")
+        if (lmax, lmax_factor) == (self.lmax, self.lmax_factor):
+            return self
+        off = _block_offsets(lmax, lmax_factor)
+        out = np.empty(int(off[lmax, lmax + 1]))
+        _restrict(_balanced_rows(off, lmax), lmax, lmax_factor, off, self.lmax_factor, self.offsets, self.values, out)
+        return GauntTable(lmax, lmax_factor, out, metadata={"restricted_from": [self.lmax, self.lmax_factor]})
+
+    def mass_matrix(self, coef: np.ndarray, *, symmetrize: bool = True) -> np.ndarray:
+        """M_ij = Σ_k a_k G_ijk for factor coefficients a.
+
+        Parameters
+        ----------
+        coef : (nfactor,) float array
+            Coefficients a_k of ρ in the flat order, up to degree La.
+        symmetrize : bool
+            When False only the upper triangle (i <= j) is filled, which is all LAPACK's symmetric solvers read.
+
+        Returns
+        -------
+        (nbasis, nbasis) float array
+        """
+        coef = self._check_coef(coef)
+        out = np.zeros((self.nbasis, self.nbasis))
+        _assemble_upper(self._rows, *self.plan.arrays, self.values, coef, out)
+        if symmetrize:
+            iu = np.triu_indices(self.nbasis, 1)
+            out[iu[1], iu[0]] = out[iu]
+        return out
+
+    def contract(self, bmat: np.ndarray) -> np.ndarray:
+        """g_k = Σ_ij G_ijk B_ij for a square (nbasis, nbasis) array B; returns (nfactor,)."""
+        bmat = np.asarray(bmat, dtype=float)
+        if bmat.shape != (self.nbasis, self.nbasis):
+            raise InvalidArgumentError(f"B must have shape {(self.nbasis, self.nbasis)}, got {bmat.shape}")
+        return _contract(self._rows, *self.plan.arrays, self.values, bmat, self.nfactor)
+
+    def quadratic_forms(self, vecs: np.ndarray) -> np.ndarray:
+        """Q[k, q] = v_qᵀ G_k v_q for the columns v_q of ``vecs`` (nbasis, nq); returns (nfactor, nq)."""
+        vecs = np.asarray(vecs, dtype=float)
+        if vecs.ndim != 2 or vecs.shape[0] != self.nbasis:
+            raise InvalidArgumentError(f"vectors must have shape ({self.nbasis}, q), got {vecs.shape}")
+        return _quad_forms(self._rows, *self.plan.arrays, self.values, np.ascontiguousarray(vecs), self.nfactor)
+
+    def _check_coef(self, coef) -> np.ndarray:
+        coef = np.asarray(coef, dtype=float)
+        if coef.shape != (self.nfactor,):
+            raise InvalidArgumentError(
+                f"factor coefficients must have shape ({self.nfactor},) for La = {self.lmax_factor}, got {coef.shape}")
+        if not np.all(np.isfinite(coef)):
+            raise InvalidArgumentError("factor coefficients contain NaN or inf")
+        return coef
