@@ -20,8 +20,19 @@ meet it; the two are matched by least squares on the two overlapping points, whi
 Intermediate values are rescaled against overflow, the family is normalized by Σ (2 j1 + 1) w² = 1 and the sign is
 fixed by sgn w(jmax) = (−1)^(j2 − j3 − m1).
 
-Only integer arguments are supported (the spherical-harmonic case).  Accuracy (measured against exact values,
-see the README): ≤ 1e-14 relative for l ≤ 60 away from accidental near-zeros, and graceful growth to l = 1000.
+Two implementations of the same sweeps:
+
+* :func:`family_into` in double precision, for the hot loop of the Gaunt table builder.  Its error is absolute,
+  ≈ 2.4e-15 × (largest |w| of the family) at l ≤ 60: about 2e-14 relative for the large symbols, but the relative
+  error grows near accidental near-zeros of a family (up to ~4e-12 at l ≤ 60).
+* :func:`family_into_dd` in double-double arithmetic (~32 digits, error-free TwoSum/TwoProd), rounded to double at
+  the end; the public :func:`wigner3j_family` and :func:`wigner3j` use it.  Every nonzero symbol with l ≤ 60 is
+  within a few ulps (measured max 4.4e-16 relative, requirement 1e-13), and exact zeros (structural or not) are
+  returned as exact 0.  About 10× the cost of the double path.
+
+Measured accuracy per degree band up to l = 1000 against WIGXJPF (exact to final rounding), and the cost per family
+of both paths: docs/wigner_accuracy.md, produced by benchmarks/wigner_accuracy.py.  Only integer arguments are
+supported (the spherical-harmonic case).
 """
 
 from __future__ import annotations
@@ -34,7 +45,7 @@ import numpy as np
 from .errors import InvalidArgumentError
 from .harmonics import MAX_DEGREE
 
-__all__ = ["wigner3j", "wigner3j_family", "family_range"]
+__all__ = ["wigner3j", "wigner3j_family", "family_range", "family_into", "family_into_dd"]
 
 _HUGE = 1.0e150
 _TINY = 1.0 / _HUGE
@@ -91,7 +102,13 @@ def _step_down(w, p, jmin, j2, j3, m1, m2, m3):
 
 @nb.njit(cache=True, nogil=True)
 def family_into(j2, j3, m2, m3, out):
-    """Fill ``out[0:n]`` with w(jmin), …, w(jmax) of one family; returns (jmin, n).  ``out`` needs n entries."""
+    """Fill ``out[0:n]`` with w(jmin), …, w(jmax) of one family in double precision; returns (jmin, n).
+
+    ``out`` needs n = j2 + j3 − jmin + 1 entries.  This is the fast path used by the Gaunt table builder: the error
+    is absolute, ≈ 2.4e-15 × max|w| at l ≤ 60 (tested ≤ 1e-14 × max|w|), so symbols near an accidental node of the
+    family have larger *relative* errors; :func:`family_into_dd` is the accurate twin.  Cost (one core): ~0.4 µs
+    per family at l = 10, ~1 µs at l = 60, ~15 µs at l = 1000.
+    """
     jmin, jmax = family_range(j2, j3, m2, m3)
     if jmin > jmax:
         return jmin, 0
@@ -161,6 +178,278 @@ def _normalize(out, n, jmin, j2, j3, m1):
     return jmin, n
 
 
+# ---------------------------------------------------------------------------------------------------------------
+# Double-double arithmetic.  A value is an unevaluated sum hi + lo with |lo| <= ulp(hi)/2, about 106 bits.  The
+# error-free transformations are Knuth's TwoSum and Dekker's TwoProd with Veltkamp splitting (numba has no fma on
+# Python < 3.13); they rely on IEEE round-to-nearest without contraction or reassociation, which is what numba
+# emits as long as fastmath stays off (the tests check TwoProd against exact rationals).
+
+_SPLIT = 134217729.0  # 2**27 + 1
+_DD_HUGE = 2.0 ** 500
+_DD_TINY = 2.0 ** -500
+_DD_ZERO = 2.0 ** -93  # cancellation below this fraction of the terms: an exact zero
+
+
+@nb.njit(cache=True, nogil=True)
+def _two_sum(a, b):
+    s = a + b
+    bb = s - a
+    return s, (a - (s - bb)) + (b - bb)
+
+
+@nb.njit(cache=True, nogil=True)
+def _quick_two_sum(a, b):
+    # needs |a| >= |b| (or a == 0)
+    s = a + b
+    return s, b - (s - a)
+
+
+@nb.njit(cache=True, nogil=True)
+def _two_prod(a, b):
+    p = a * b
+    t = _SPLIT * a
+    ah = t - (t - a)
+    al = a - ah
+    t = _SPLIT * b
+    bh = t - (t - b)
+    bl = b - bh
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+@nb.njit(cache=True, nogil=True)
+def _dd_add(ah, al, bh, bl):
+    s, e = _two_sum(ah, bh)
+    t, f = _two_sum(al, bl)
+    e += t
+    s, e = _quick_two_sum(s, e)
+    e += f
+    return _quick_two_sum(s, e)
+
+
+@nb.njit(cache=True, nogil=True)
+def _dd_mul(ah, al, bh, bl):
+    p, e = _two_prod(ah, bh)
+    e += ah * bl + al * bh
+    return _quick_two_sum(p, e)
+
+
+@nb.njit(cache=True, nogil=True)
+def _dd_mul_d(ah, al, b):
+    p, e = _two_prod(ah, b)
+    e += al * b
+    return _quick_two_sum(p, e)
+
+
+@nb.njit(cache=True, nogil=True)
+def _dd_div(ah, al, bh, bl):
+    # long division with one correction step: relative error ~ 2**-104
+    q1 = ah / bh
+    ph, pl = _dd_mul_d(bh, bl, q1)
+    rh, rl = _dd_add(ah, al, -ph, -pl)
+    q2 = rh / bh
+    ph, pl = _dd_mul_d(bh, bl, q2)
+    rh, rl = _dd_add(rh, rl, -ph, -pl)
+    q3 = rh / bh
+    q1, q2 = _quick_two_sum(q1, q2)
+    return _dd_add(q1, q2, q3, 0.0)
+
+
+@nb.njit(cache=True, nogil=True)
+def _dd_sqrt(ah, al):
+    # one Newton (Heron) correction of the double square root: sqrt(a) = x + (a - x²) / (2x)
+    if ah <= 0.0:
+        return 0.0, 0.0
+    x = math.sqrt(ah)
+    p, e = _two_prod(x, x)
+    r = ((ah - p) - e + al) / (2.0 * x)
+    return _quick_two_sum(x, r)
+
+
+@nb.njit(cache=True, nogil=True)
+def _dd_from_int(k):
+    # an int64 as an exact double-double (|k| < 2**63)
+    h = float(k)
+    return h, float(k - np.int64(h))
+
+
+@nb.njit(cache=True, nogil=True)
+def _coef_a_dd(j1, j2, j3, m1):
+    # A(j1) with the three integer factors exact in double (each < 2**53) and the product and root in double-double
+    x = float(j1)
+    d = float(j2 - j3)
+    s = float(j2 + j3 + 1)
+    mm = float(m1)
+    f1 = x * x - d * d
+    f2 = s * s - x * x
+    f3 = x * x - mm * mm
+    if f1 <= 0.0 or f2 <= 0.0 or f3 <= 0.0:
+        return 0.0, 0.0
+    ph, pl = _two_prod(f1, f2)
+    ph, pl = _dd_mul_d(ph, pl, f3)
+    return _dd_sqrt(ph, pl)
+
+
+@nb.njit(cache=True, nogil=True)
+def _coef_b_int(j1, j2, j3, m1, m2, m3):
+    # B(j1) is an integer; int64 keeps it exact for every argument the public functions accept
+    j = np.int64(j1)
+    c = np.int64(j2) * (j2 + 1) - np.int64(j3) * (j3 + 1)
+    return -(2 * j + 1) * (c * m1 - j * (j + 1) * (m3 - m2))
+
+
+@nb.njit(cache=True, nogil=True)
+def _dd_step(c1h, c1l, w1h, w1l, c2h, c2l, w2h, w2l, dh, dl):
+    # -(c1 w1 + c2 w2) / d.  When the two terms cancel to below the double-double noise, the true value is
+    # indistinguishable from 0, and it is set to exactly 0: this reproduces the non-trivial (Diophantine) zeros of
+    # the 3j symbols, e.g. (6 4 4; 2 -2 0), exactly, and changes any other value by less than the noise.
+    ph, pl = _dd_mul(c1h, c1l, w1h, w1l)
+    qh, ql = _dd_mul(c2h, c2l, w2h, w2l)
+    sh, sl = _dd_add(ph, pl, qh, ql)
+    if abs(sh) <= _DD_ZERO * (abs(ph) + abs(qh)):
+        return 0.0, 0.0
+    return _dd_div(-sh, -sl, dh, dl)
+
+
+@nb.njit(cache=True, nogil=True)
+def family_into_dd(j2, j3, m2, m3, hi, lo):
+    """Double-double twin of :func:`family_into`: the family as ``hi[0:n] + lo[0:n]``; returns (jmin, n).
+
+    The same two-sided Schulten–Gordon sweeps as :func:`family_into`, with every coefficient (A as the root of an
+    exact integer product, B as an exact integer) and every operation carried in double-double (~32 digits), so the
+    rounding error of the recursion, even where it passes near a node, ends up far below one double ulp;
+    ``hi`` alone is the correctly rounded double of ``hi + lo`` and is what :func:`wigner3j_family` returns.
+    Structural zeros (B ≡ 0, e.g. all m = 0 with odd j1 + j2 + j3) come out as exact zeros.
+
+    Cost (one core, measured by ``benchmarks/wigner_accuracy.py``): about 6–8× the double :func:`family_into`,
+    e.g. ~2 µs per family at l = 10, ~10 µs at l = 60, ~0.15 ms at l = 1000 (see docs/wigner_accuracy.md).
+
+    Parameters
+    ----------
+    j2, j3, m2, m3 : int
+        As in :func:`family_into`.
+    hi, lo : (>= n,) float64 arrays
+        Overwritten in ``[0:n]`` with the leading and trailing parts of w(jmin), …, w(jmax).
+    """
+    jmin, jmax = family_range(j2, j3, m2, m3)
+    if jmin > jmax:
+        return jmin, 0
+    m1 = -(m2 + m3)
+    n = jmax - jmin + 1
+    if n == 1:
+        sh, sl = _dd_sqrt(2.0 * jmin + 1.0, 0.0)
+        rh, rl = _dd_div(1.0, 0.0, sh, sl)
+        if (j2 - j3 - m1) % 2 != 0:
+            rh, rl = -rh, -rl
+        hi[0] = rh
+        lo[0] = rl
+        return jmin, 1
+
+    # coefficient tables, index t <-> j1 = jmin + t:  the recursion reads
+    #   cd[t] w[t+1] + b[t] w[t] + cu[t] w[t-1] = 0,  cd[t] = j1 A(j1+1),  cu[t] = (j1+1) A(j1)
+    bh = np.empty(n)
+    bl = np.empty(n)
+    cuh = np.empty(n)
+    cul = np.empty(n)
+    cdh = np.empty(n)
+    cdl = np.empty(n)
+    a0h, a0l = _coef_a_dd(jmin, j2, j3, m1)
+    for t in range(n):
+        j = jmin + t
+        bh[t], bl[t] = _dd_from_int(_coef_b_int(j, j2, j3, m1, m2, m3))
+        a1h, a1l = _coef_a_dd(j + 1, j2, j3, m1)
+        cuh[t], cul[t] = _dd_mul_d(a0h, a0l, float(j + 1))
+        cdh[t], cdl[t] = _dd_mul_d(a1h, a1l, float(j))
+        a0h, a0l = a1h, a1l
+
+    kh = np.empty(n)
+    kl = np.empty(n)
+    # backward sweep from jmax through the upper forbidden region (two-term start: A(jmax + 1) = 0)
+    kh[n - 1] = 1.0
+    kl[n - 1] = 0.0
+    kh[n - 2], kl[n - 2] = _dd_div(-bh[n - 1], -bl[n - 1], cuh[n - 1], cul[n - 1])
+    pb = n - 2
+    while pb > 0 and (jmin == 0 or abs(kh[pb]) > abs(kh[pb + 1])):
+        kh[pb - 1], kl[pb - 1] = _dd_step(cdh[pb], cdl[pb], kh[pb + 1], kl[pb + 1], bh[pb], bl[pb],
+                                          kh[pb], kl[pb], cuh[pb], cul[pb])
+        pb -= 1
+        if abs(kh[pb]) > _DD_HUGE:
+            for t in range(pb, n):
+                kh[t] *= _DD_TINY
+                kl[t] *= _DD_TINY
+    if jmin == 0:
+        # j2 = j3 and m1 = 0: no lower forbidden region, the backward sweep ran to the end
+        for t in range(n):
+            hi[t] = kh[t]
+            lo[t] = kl[t]
+        return _normalize_dd(hi, lo, n, jmin, j2, j3, m1)
+
+    # forward sweep from jmin through the lower forbidden region (two-term start: A(jmin) = 0)
+    hi[0] = 1.0
+    lo[0] = 0.0
+    hi[1], lo[1] = _dd_div(-bh[0], -bl[0], cdh[0], cdl[0])
+    pf = 1
+    while pf < pb + 1 and abs(hi[pf]) > abs(hi[pf - 1]):
+        hi[pf + 1], lo[pf + 1] = _dd_step(bh[pf], bl[pf], hi[pf], lo[pf], cuh[pf], cul[pf],
+                                          hi[pf - 1], lo[pf - 1], cdh[pf], cdl[pf])
+        pf += 1
+        if abs(hi[pf]) > _DD_HUGE:
+            for t in range(pf + 1):
+                hi[t] *= _DD_TINY
+                lo[t] *= _DD_TINY
+    mid = pb if pf > pb else (pf + pb) // 2
+    while pf < mid + 1:
+        hi[pf + 1], lo[pf + 1] = _dd_step(bh[pf], bl[pf], hi[pf], lo[pf], cuh[pf], cul[pf],
+                                          hi[pf - 1], lo[pf - 1], cdh[pf], cdl[pf])
+        pf += 1
+        if abs(hi[pf]) > _DD_HUGE:
+            for t in range(pf + 1):
+                hi[t] *= _DD_TINY
+                lo[t] *= _DD_TINY
+    while pb > mid:
+        kh[pb - 1], kl[pb - 1] = _dd_step(cdh[pb], cdl[pb], kh[pb + 1], kl[pb + 1], bh[pb], bl[pb],
+                                          kh[pb], kl[pb], cuh[pb], cul[pb])
+        pb -= 1
+        if abs(kh[pb]) > _DD_HUGE:
+            for t in range(pb, n):
+                kh[t] *= _DD_TINY
+                kl[t] *= _DD_TINY
+    # least-squares match on the two points both sweeps hold
+    xh, xl = _dd_mul(hi[mid], lo[mid], kh[mid], kl[mid])
+    yh, yl = _dd_mul(hi[mid + 1], lo[mid + 1], kh[mid + 1], kl[mid + 1])
+    nh, nl = _dd_add(xh, xl, yh, yl)
+    xh, xl = _dd_mul(kh[mid], kl[mid], kh[mid], kl[mid])
+    yh, yl = _dd_mul(kh[mid + 1], kl[mid + 1], kh[mid + 1], kl[mid + 1])
+    dh, dl = _dd_add(xh, xl, yh, yl)
+    sh, sl = _dd_div(nh, nl, dh, dl)
+    for t in range(mid, n):
+        hi[t], lo[t] = _dd_mul(kh[t], kl[t], sh, sl)
+    return _normalize_dd(hi, lo, n, jmin, j2, j3, m1)
+
+
+@nb.njit(cache=True, nogil=True)
+def _normalize_dd(hi, lo, n, jmin, j2, j3, m1):
+    # scale by an exact power of two so that the largest value is O(1), then divide by sqrt(Σ (2 j1 + 1) w²)
+    big = 0.0
+    for t in range(n):
+        big = max(big, abs(hi[t]))
+    f = math.ldexp(1.0, -math.frexp(big)[1])
+    sh = 0.0
+    sl = 0.0
+    for t in range(n):
+        hi[t] *= f
+        lo[t] *= f
+        qh, ql = _dd_mul(hi[t], lo[t], hi[t], lo[t])
+        qh, ql = _dd_mul_d(qh, ql, 2.0 * (jmin + t) + 1.0)
+        sh, sl = _dd_add(sh, sl, qh, ql)
+    rh, rl = _dd_sqrt(sh, sl)
+    ch, cl = _dd_div(1.0, 0.0, rh, rl)
+    if (hi[n - 1] < 0) == ((j2 - j3 - m1) % 2 == 0):
+        ch, cl = -ch, -cl
+    for t in range(n):
+        hi[t], lo[t] = _dd_mul(hi[t], lo[t], ch, cl)
+    return jmin, n
+
+
 def _check_int(name, value):
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise InvalidArgumentError(f"{name} must be an integer (half-integer spins are not supported), got {value!r}")
@@ -184,6 +473,12 @@ def wigner3j_family(j2: int, j3: int, m2: int, m3: int) -> tuple[int, np.ndarray
         First j1 of the family, max(|j2 − j3|, |m2 + m3|).
     w : (j2 + j3 − jmin + 1,) float array
         w[t] is the symbol with j1 = jmin + t.  Empty when the arguments admit no symbol.
+
+    Notes
+    -----
+    Computed in double-double (:func:`family_into_dd`) and rounded: every nonzero symbol with l ≤ 60 to ≤ 1e-13
+    relative (measured ≤ 5e-16), exact zeros as 0.0; see docs/wigner_accuracy.md for larger l.  Cost ~10 µs per
+    family at l = 60; when the absolute error 1e-14 × max|w| is enough, :func:`family_into` is 10× faster.
     """
     j2, j3, m2, m3 = (_check_int(n, v) for n, v in (("j2", j2), ("j3", j3), ("m2", m2), ("m3", m3)))
     if j2 < 0 or j3 < 0:
@@ -191,7 +486,8 @@ def wigner3j_family(j2: int, j3: int, m2: int, m3: int) -> tuple[int, np.ndarray
     jmin, jmax = family_range(j2, j3, m2, m3)
     out = np.zeros(max(jmax - jmin + 1, 0))
     if out.size:
-        family_into(j2, j3, m2, m3, out)
+        family_into_dd(j2, j3, m2, m3, out, np.empty(out.size))
+        out += 0.0  # -0.0 -> 0.0
     return jmin, out
 
 
@@ -204,9 +500,10 @@ def _wigner3j_scalar(j1, j2, j3, m1, m2, m3):
     if j1 < abs(j2 - j3) or j1 > j2 + j3:
         return 0.0
     jmin, jmax = family_range(j2, j3, m2, m3)
-    out = np.empty(jmax - jmin + 1)
-    family_into(j2, j3, m2, m3, out)
-    return out[j1 - jmin]
+    hi = np.empty(jmax - jmin + 1)
+    lo = np.empty(jmax - jmin + 1)
+    family_into_dd(j2, j3, m2, m3, hi, lo)
+    return hi[j1 - jmin] + 0.0  # -0.0 -> 0.0
 
 
 def wigner3j(l1: int, l2: int, l3: int, m1: int, m2: int, m3: int) -> float:
@@ -214,6 +511,12 @@ def wigner3j(l1: int, l2: int, l3: int, m1: int, m2: int, m3: int) -> float:
 
     Zero when the selection rules fail (m1 + m2 + m3 ≠ 0, triangle inequality, |m| > l).  Computed from the family
     over l1 (see :func:`wigner3j_family`), so many symbols of one family are cheaper through that function.
+    Accuracy: ≤ 1e-13 relative for every nonzero symbol with l ≤ 60 (measured ≤ 5e-16), exact zeros as 0.0.
+
+    Raises
+    ------
+    InvalidArgumentError
+        An argument that is not an integer (half-integer spins are not supported) or exceeds 2 × MAX_DEGREE.
     """
     args = [_check_int(n, v) for n, v in zip(("l1", "l2", "l3", "m1", "m2", "m3"), (l1, l2, l3, m1, m2, m3))]
     return float(_wigner3j_scalar(*args))
