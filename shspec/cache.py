@@ -1,0 +1,315 @@
+"""The on-disk cache of Gaunt tables: HDF5 files written atomically under a lock and validated on load.
+
+Schema (format version 1), one file ``gaunt_Lb{Lb}_La{La}.h5`` per table:
+
+================  =========================================================================================
+``/values``       float64 dataset, the stored families in the layout of :mod:`shspec.table`
+attr ``format``   ``"shspec-gaunt"``
+attr ``format_version``  int, 1
+attr ``lmax``     int, basis band limit Lb
+attr ``lmax_factor``  int, factor band limit La
+attr ``convention``   :data:`CONVENTION`: real orthonormal harmonics as pyshtools (ortho, csphase=1), flat index
+attr ``count``    int, number of values (must equal the layout's size for (Lb, La))
+attr ``checksum`` ``"blake2b:<hex>"`` of the raw little-endian bytes of ``/values``
+attr ``shspec_version``, ``created`` (ISO 8601, UTC), ``build_seconds``
+================  =========================================================================================
+
+The cache directory is, in order: the ``cache_dir`` argument, the ``SHSPEC_CACHE`` environment variable, the
+``cache/`` folder of a source checkout, or the user cache folder (``~/.cache/shspec``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import hashlib
+import os
+import re
+import tempfile
+import time
+import warnings
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .errors import (BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError)
+from .table import GauntTable, build_table, check_limits, table_size
+
+__all__ = ["CONVENTION", "FORMAT_VERSION", "TableInfo", "cache_dir", "table_path", "save_table", "load_table",
+           "get_table", "list_tables", "verify_table"]
+
+FORMAT_VERSION = 1
+CONVENTION = "real-ortho-csphase1-pyshtools; flat i=l*l+l+m; G_ijk=int Y_i Y_j Y_k dOmega"
+_NAME = re.compile(r"^gaunt_Lb(\d+)_La(\d+)\.h5$")
+
+
+def cache_dir(path: str | os.PathLike | None = None) -> Path:
+    """The cache directory to use (see the module docstring for the order of precedence)."""
+    if path is not None:
+        return Path(path)
+    env = os.environ.get("SHSPEC_CACHE")
+    if env:
+        return Path(env)
+    checkout = Path(__file__).resolve().parents[1] / "cache"
+    if checkout.is_dir():
+        return checkout
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "shspec"
+
+
+def table_path(lmax: int, lmax_factor: int, directory: str | os.PathLike | None = None) -> Path:
+    """Path of the file holding the table (Lb, La) in the cache directory."""
+    lmax, lmax_factor = check_limits(lmax, lmax_factor)
+    return cache_dir(directory) / f"gaunt_Lb{lmax}_La{lmax_factor}.h5"
+
+
+def _writable_dir(directory: Path) -> Path:
+    if directory.exists() and not directory.is_dir():
+        raise CacheLocationError(f"the cache location {directory} is a file, not a directory")
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CacheLocationError(f"cannot create the cache directory {directory}: {exc.strerror}") from exc
+    if not os.access(directory, os.W_OK | os.X_OK):
+        raise CacheLocationError(f"the cache directory {directory} is not writable (set SHSPEC_CACHE or cache_dir)")
+    return directory
+
+
+@contextlib.contextmanager
+def _locked(path: Path):
+    """Exclusive advisory lock on ``path.lock`` so that concurrent builders of one table wait for each other."""
+    lock = path.with_name(path.name + ".lock")
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise CacheLocationError(f"cannot create the lock file {lock}: {exc.strerror}") from exc
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+
+
+def _checksum(values: np.ndarray) -> str:
+    h = hashlib.blake2b(digest_size=32)
+    h.update(np.ascontiguousarray(values, dtype="<f8").data)
+    return "blake2b:" + h.hexdigest()
+
+
+def save_table(table: GauntTable, directory: str | os.PathLike | None = None, *, build_seconds: float = float("nan"),
+               ) -> Path:
+    """Write ``table`` to the cache atomically (temporary file in the same folder, fsync, rename); returns the path."""
+    from . import __version__
+
+    directory = _writable_dir(cache_dir(directory))
+    path = table_path(table.lmax, table.lmax_factor, directory)
+    checksum = _checksum(table.values)
+    created = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    fd, tmp = tempfile.mkstemp(dir=directory, prefix=path.name + ".", suffix=".tmp")
+    os.close(fd)
+    try:
+        with h5py.File(tmp, "w") as f:
+            f.create_dataset("values", data=table.values)
+            attrs = {"format": "shspec-gaunt", "format_version": FORMAT_VERSION, "lmax": table.lmax,
+                     "lmax_factor": table.lmax_factor, "convention": CONVENTION, "count": table.values.size,
+                     "checksum": checksum, "shspec_version": __version__, "created": created,
+                     "build_seconds": build_seconds}
+            f.attrs.update(attrs)
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            raise CacheLocationError(f"no space left in {directory} to write {path.name} "
+                                     f"({table.values.nbytes / 2**20:.0f} MiB)") from exc
+        raise CacheLocationError(f"cannot write {path}: {exc}") from exc
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    table.path = path
+    table.metadata = dict(checksum=checksum, created=created, shspec_version=__version__,
+                          build_seconds=build_seconds)
+    return path
+
+
+def _read(path: Path, lmax: int | None = None, lmax_factor: int | None = None) -> GauntTable:
+    """Read and fully validate one table file; raise CorruptTableError / TableMismatchError on any defect."""
+    try:
+        f = h5py.File(path, "r")
+    except FileNotFoundError:
+        raise
+    except OSError as exc:
+        raise CorruptTableError(f"{path} is not a readable HDF5 file (truncated or corrupt): {exc}") from exc
+    with f:
+        attrs = dict(f.attrs)
+        if attrs.get("format") != "shspec-gaunt":
+            raise CorruptTableError(f"{path} is not an shspec Gaunt table (format attribute {attrs.get('format')!r})")
+        version = attrs.get("format_version")
+        if version != FORMAT_VERSION:
+            raise TableMismatchError(f"{path} has format version {version}; this shspec reads version "
+                                     f"{FORMAT_VERSION}: rebuild it (precompute --force)")
+        if attrs.get("convention") != CONVENTION:
+            raise TableMismatchError(f"{path} was built for the convention {attrs.get('convention')!r}, "
+                                     f"not {CONVENTION!r}")
+        try:
+            have_b, have_a = int(attrs["lmax"]), int(attrs["lmax_factor"])
+            count, checksum = int(attrs["count"]), str(attrs["checksum"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CorruptTableError(f"{path} lacks a required attribute: {exc}") from exc
+        if lmax is not None and (have_b, have_a) != (lmax, lmax_factor):
+            raise TableMismatchError(f"{path} holds the table ({have_b},{have_a}), not ({lmax},{lmax_factor})")
+        expected = table_size(have_b, have_a)
+        if count != expected or "values" not in f or f["values"].shape != (expected,):
+            raise CorruptTableError(f"{path} should hold {expected} values for ({have_b},{have_a}); "
+                                    f"it says {count} and stores {f['values'].shape if 'values' in f else 'none'}")
+        try:
+            values = f["values"][...]
+        except OSError as exc:
+            raise CorruptTableError(f"{path}: the values cannot be read (truncated file?): {exc}") from exc
+    if values.dtype != np.float64:
+        raise CorruptTableError(f"{path}: values have dtype {values.dtype}, expected float64")
+    if _checksum(values) != checksum:
+        raise CorruptTableError(f"{path} fails its checksum: the file is corrupt; rebuild it (precompute --force)")
+    meta = {k: (v.item() if hasattr(v, "item") else v) for k, v in attrs.items()}
+    return GauntTable(have_b, have_a, values, path=path, metadata=meta)
+
+
+@dataclass(frozen=True)
+class TableInfo:
+    """One file of the cache, as listed by :func:`list_tables` (read from its attributes only)."""
+
+    path: Path
+    lmax: int
+    lmax_factor: int
+    count: int
+    nbytes: int
+    created: str
+    problem: str | None  # why the file is unusable, or None
+
+
+def list_tables(directory: str | os.PathLike | None = None) -> list[TableInfo]:
+    """The tables in the cache directory, smallest first, with a note on any that cannot be used."""
+    directory = cache_dir(directory)
+    out = []
+    if not directory.is_dir():
+        return out
+    for path in sorted(directory.iterdir()):
+        match = _NAME.match(path.name)
+        if not match:
+            continue
+        lb, la = int(match.group(1)), int(match.group(2))
+        problem, count, created = None, 0, ""
+        try:
+            with h5py.File(path, "r") as f:
+                count = int(f.attrs.get("count", -1))
+                created = str(f.attrs.get("created", ""))
+                if f.attrs.get("format_version") != FORMAT_VERSION:
+                    problem = f"format version {f.attrs.get('format_version')}"
+                elif (int(f.attrs.get("lmax", -1)), int(f.attrs.get("lmax_factor", -1))) != (lb, la):
+                    problem = "band limits in the file do not match its name"
+        except OSError as exc:
+            problem = f"unreadable: {exc}"
+        out.append(TableInfo(path, lb, la, count, path.stat().st_size, created, problem))
+    return sorted(out, key=lambda t: (t.count, t.lmax, t.lmax_factor))
+
+
+def load_table(lmax: int, lmax_factor: int, directory: str | os.PathLike | None = None) -> GauntTable:
+    """Load the table (Lb, La) from the cache, or restrict the smallest cached table that covers it.
+
+    Raises
+    ------
+    FileNotFoundError
+        No cached table covers (Lb, La).
+    CorruptTableError, TableMismatchError
+        The exact file exists but is damaged or of another format; it is never used silently.
+    """
+    lmax, lmax_factor = check_limits(lmax, lmax_factor)
+    path = table_path(lmax, lmax_factor, directory)
+    if path.exists():
+        return _read(path, lmax, lmax_factor)
+    for info in list_tables(directory):
+        if info.problem is None and info.lmax >= lmax and info.lmax_factor >= lmax_factor:
+            try:
+                return _read(info.path).restrict(lmax, lmax_factor)
+            except (CorruptTableError, TableMismatchError) as exc:
+                warnings.warn(f"skipping a damaged cached table: {exc}", stacklevel=2)
+    raise FileNotFoundError(f"no cached Gaunt table covers ({lmax},{lmax_factor}) in {cache_dir(directory)}")
+
+
+def get_table(lmax: int, lmax_factor: int, *, cache_dir: str | os.PathLike | None = None, build: bool = True,
+              rebuild_corrupt: bool = False, progress: bool = False) -> GauntTable:
+    """The Gaunt table (Lb, La): from the cache if there, otherwise built (and saved) when ``build`` is True.
+
+    Parameters
+    ----------
+    lmax, lmax_factor : int
+        Basis band limit Lb and factor band limit La.
+    cache_dir : path-like, optional
+        Cache directory (default: see :func:`cache_dir`).
+    build : bool
+        Build and save a missing table; when False a missing table raises :class:`BandLimitError`.
+    rebuild_corrupt : bool
+        Replace a corrupt or outdated file by a fresh build, with a warning, instead of raising.
+    progress : bool
+        Progress bar while building.
+    """
+    directory = cache_dir
+    lmax, lmax_factor = check_limits(lmax, lmax_factor)
+    try:
+        return load_table(lmax, lmax_factor, directory)
+    except FileNotFoundError:
+        if not build:
+            raise BandLimitError(f"no cached Gaunt table covers (lmax={lmax}, lmax_factor={lmax_factor}) and "
+                                 f"building is not allowed; run: python -m precompute --lmax {lmax} "
+                                 f"--lmax-factor {lmax_factor}") from None
+    except (CorruptTableError, TableMismatchError) as exc:
+        if not rebuild_corrupt:
+            raise
+        warnings.warn(f"rebuilding the Gaunt table: {exc}", stacklevel=2)
+    path = table_path(lmax, lmax_factor, directory)
+    _writable_dir(path.parent)
+    with _locked(path):
+        # another process may have built it while we waited for the lock
+        if path.exists():
+            try:
+                return _read(path, lmax, lmax_factor)
+            except (CorruptTableError, TableMismatchError):
+                if not rebuild_corrupt:
+                    raise
+        start = time.perf_counter()
+        table = build_table(lmax, lmax_factor, progress=progress)
+        save_table(table, directory, build_seconds=time.perf_counter() - start)
+    return table
+
+
+def verify_table(table: GauntTable, samples: int = 2000, seed: int = 0) -> float:
+    """Largest absolute difference between ``samples`` random table entries and a fresh scalar computation.
+
+    Each sample is one plan entry (a real pair i <= j and an order m3) and one degree l3 of its family, recomputed
+    with :func:`shspec.real_gaunt`.
+    """
+    from .gaunt import real_gaunt
+    from .harmonics import degree_order
+
+    plan = table.plan
+    n = plan.i.size
+    if n == 0:
+        return 0.0
+    rng = np.random.default_rng(seed)
+    l, m = degree_order(table.lmax)
+    worst = 0.0
+    for e in rng.integers(0, n, size=samples):
+        t = int(rng.integers(0, plan.count[e]))
+        l3 = int(plan.l3min[e]) + 2 * t
+        i, j = int(plan.i[e]), int(plan.j[e])
+        stored = plan.factor[e] * table.values[plan.offset[e] + t]
+        fresh = real_gaunt(int(l[i]), int(m[i]), int(l[j]), int(m[j]), l3, int(plan.m3[e]))
+        worst = max(worst, abs(stored - fresh))
+    return worst
