@@ -1,0 +1,118 @@
+"""Checks that a triangle mesh is a closed, oriented, manifold, connected genus-0 surface.
+
+Every check raises :class:`~shspec.errors.MeshError` whose message names the offending count or element, in this
+order: finite coordinates, repeated indices, unreferenced vertices, zero-area faces, non-manifold edges, boundary
+loops, orientation, components, non-manifold vertices, genus.  The order matters: a later check assumes the earlier
+ones passed (e.g. counting boundary loops needs every edge to have at most two faces).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from ..errors import MeshError
+from .triangle_mesh import TriangleMesh
+
+__all__ = ["validate_mesh", "ZERO_AREA_RTOL"]
+
+#: A face whose area is below this fraction of the mean face area counts as degenerate.
+ZERO_AREA_RTOL = 1e-12
+
+
+def validate_mesh(mesh: TriangleMesh) -> TriangleMesh:
+    """Check that ``mesh`` is a closed, consistently oriented, manifold, connected genus-0 triangle mesh.
+
+    Parameters
+    ----------
+    mesh : TriangleMesh
+        The mesh, n vertices and m faces.
+
+    Returns
+    -------
+    TriangleMesh
+        ``mesh`` itself, so that calls can be chained.
+
+    Raises
+    ------
+    MeshError
+        On the first failed check, with the offending vertex, face, edge or count in the message.
+    """
+    if not isinstance(mesh, TriangleMesh):
+        raise MeshError(f"expected a TriangleMesh, got {type(mesh).__name__}")
+    v, f = mesh.vertices, mesh.faces
+    n = v.shape[0]
+    if f.shape[0] == 0:
+        raise MeshError("the mesh has no faces")
+    bad = np.flatnonzero(~np.all(np.isfinite(v), axis=1))
+    if bad.size:
+        raise MeshError(f"{bad.size} vertices have NaN or inf coordinates (first: vertex {bad[0]})")
+    rep = np.flatnonzero((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 2] == f[:, 0]))
+    if rep.size:
+        raise MeshError(f"{rep.size} faces repeat a vertex (first: face {rep[0]} = {f[rep[0]].tolist()})")
+    used = np.zeros(n, dtype=bool)
+    used[f.ravel()] = True
+    if not used.all():
+        free = np.flatnonzero(~used)
+        raise MeshError(f"{free.size} vertices belong to no face (first: vertex {free[0]})")
+    areas = mesh.face_areas()
+    zero = np.flatnonzero(areas <= ZERO_AREA_RTOL * areas.mean())
+    if zero.size:
+        raise MeshError(f"{zero.size} faces have zero area (first: face {zero[0]} = {f[zero[0]].tolist()})")
+
+    # Half-edges a->b of every face; the undirected edge is (min, max).
+    heads = f.ravel()
+    tails = f[:, [1, 2, 0]].ravel()
+    lo, hi = np.minimum(heads, tails), np.maximum(heads, tails)
+    key = lo * n + hi
+    ukey, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    over = np.flatnonzero(counts > 2)
+    if over.size:
+        a, b = divmod(int(ukey[over[0]]), n)
+        raise MeshError(f"{over.size} edges are shared by more than two faces (first: edge ({a}, {b}) "
+                        f"with {counts[over[0]]} faces): the mesh is not edge-manifold")
+    border = np.flatnonzero(counts == 1)
+    if border.size:
+        a, b = np.divmod(ukey[border], n)
+        graph = sp.coo_matrix((np.ones(a.size), (a, b)), shape=(n, n))
+        ncomp, labels = connected_components(graph, directed=False)
+        loops = np.unique(labels[np.concatenate([a, b])]).size
+        raise MeshError(f"the mesh is not closed: {border.size} boundary edges forming {loops} boundary "
+                        f"loop{'s' if loops != 1 else ''} (holes)")
+    dkey = heads * n + tails
+    duk, dcounts = np.unique(dkey, return_counts=True)
+    twice = np.flatnonzero(dcounts > 1)
+    if twice.size:
+        a, b = divmod(int(duk[twice[0]]), n)
+        raise MeshError(f"the faces are not consistently oriented: {twice.size} edges are traversed twice in the "
+                        f"same direction (first: {a} -> {b})")
+    nedges = ukey.size
+    graph = sp.coo_matrix((np.ones(lo.size), (lo, hi)), shape=(n, n))
+    ncomp, _ = connected_components(graph, directed=False)
+    if ncomp != 1:
+        raise MeshError(f"the mesh has {ncomp} connected components; shspec needs one")
+
+    # Vertex-manifold: the corners at a vertex must form one fan.  Corner (face t, vertex a) and the corner of the
+    # face across edge a->b at the same vertex a are joined; a vertex whose corners fall into two or more groups
+    # is a pinch point (e.g. two cones touching at their tips).
+    corner = np.arange(3 * f.shape[0])
+    order = np.argsort(dkey)
+    twin_key = tails * n + heads
+    twin = order[np.searchsorted(dkey[order], twin_key)]
+    # corner of half-edge h = (a -> b) sits at a; the twin (b -> a) starts at b, so its "next" corner sits at a.
+    twin_next = 3 * (twin // 3) + (twin % 3 + 1) % 3
+    cg = sp.coo_matrix((np.ones(corner.size), (corner, twin_next)), shape=(corner.size, corner.size))
+    _, clabels = connected_components(cg, directed=False)
+    fans = np.zeros(n, dtype=np.int64)
+    uniq = np.unique(np.stack([heads, clabels]), axis=1)
+    np.add.at(fans, uniq[0], 1)
+    pinch = np.flatnonzero(fans > 1)
+    if pinch.size:
+        raise MeshError(f"{pinch.size} vertices are not manifold (first: vertex {pinch[0]} joins "
+                        f"{fans[pinch[0]]} separate fans of faces)")
+    chi = n - nedges + f.shape[0]
+    if chi != 2:
+        genus = (2 - chi) / 2
+        raise MeshError(f"the mesh has Euler characteristic {chi} (genus {genus:g}); shspec needs genus 0 (chi = 2)")
+    return mesh
