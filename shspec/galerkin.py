@@ -1,0 +1,205 @@
+"""The Galerkin forward solver: the Laplace–Beltrami spectrum of g = ρ g₀ in the spherical-harmonic basis.
+
+In the basis {Y_i : l_i <= Lb} the stiffness is S = diag(l_i(l_i+1)) for every ρ (the Dirichlet energy is conformally
+invariant in 2D) and the mass is M(a) = Σ_k a_k G_k.  We want the first k eigenpairs of S v = λ M v.
+
+How it is solved.  The constant Y_00 spans the kernel of S (λ₀ = 0, v₀ = e₀/√M₀₀).  Every other eigenvector is
+M-orthogonal to it, which eliminates its first coordinate, v₀ = −m·v_r/M₀₀ with m = M[0, 1:]; what is left is
+S_r v_r = λ K v_r with the Schur complement K = M_rr − m mᵀ/M₀₀ (SPD).  Scaling by D = S_r^{1/2} (diagonal, positive)
+turns it into the *standard* symmetric problem H u = μ u, H = D⁻¹ K D⁻¹, μ = 1/λ, of which we want the largest k−1
+eigenvalues.  This skips the Cholesky factorization and the two-sided reduction of a generalized solver, and LAPACK's
+MRRR driver computes only the wanted eigenvectors.  Then v_r = √λ D⁻¹ u is M-normalized.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+import scipy.linalg
+
+from .cache import get_table
+from .errors import BandLimitError, InvalidArgumentError, NotPositiveError
+from .factor import ConformalFactor, as_factor
+from .harmonics import check_degree, degrees, ncoeffs
+from .model import SpectralModel, Spectrum
+from .table import GauntTable
+
+__all__ = ["HarmonicModel", "SpectrumResult", "spectrum"]
+
+
+@nb.njit(cache=True, parallel=True)
+def _schur_scaled_upper(m_upper, dinv, out):
+    """Upper triangle of H = D⁻¹ (M_rr − m mᵀ/M₀₀) D⁻¹ from the upper triangle of M, into out (N−1, N−1)."""
+    n = out.shape[0]
+    m00 = m_upper[0, 0]
+    for r in nb.prange(n):
+        mr = m_upper[0, r + 1] / m00
+        for c in range(r, n):
+            out[r, c] = (m_upper[r + 1, c + 1] - mr * m_upper[0, c + 1]) * dinv[r] * dinv[c]
+
+
+@dataclass(frozen=True)
+class SpectrumResult(Spectrum):
+    """First k eigenpairs of S v = λ M(a) v for a conformal factor.
+
+    Attributes
+    ----------
+    eigenvalues : (k,) float array
+        Ascending, λ₀ = 0 first (units 1/area: eigenvalues of the unit sphere are l(l+1)).
+    eigenvectors : (N, k) float array
+        Coefficients of the eigenfunctions in the basis Y_i, i < N = (Lb+1)**2, M-orthonormal.
+    lmax : int
+        Basis band limit Lb.
+    lmax_factor : int
+        Band limit La of the factor used.
+    """
+
+    lmax: int = 0
+    lmax_factor: int = 0
+
+
+class HarmonicModel(SpectralModel):
+    """The Galerkin discretization of a basis band limit Lb and a factor band limit La.
+
+    Parameters are the flat coefficients a (nparams = (La+1)**2) of ρ; M(a) = Σ_k a_k G_k is linear in them.
+
+    Parameters
+    ----------
+    lmax : int
+        Basis band limit Lb.
+    lmax_factor : int
+        Factor band limit La (<= 2·Lb).
+    table : GauntTable, optional
+        A table covering (Lb, La); by default taken from the cache (built there if missing and ``build``).
+    cache_dir : path-like, optional
+        Cache directory for the table.
+    build : bool
+        Allow building a missing table.
+    check_positive : bool
+        Check ρ > 0 on a grid before each solve (a clear error instead of a non-SPD mass matrix).
+    """
+
+    def __init__(self, lmax: int, lmax_factor: int, *, table: GauntTable | None = None, cache_dir=None,
+                 build: bool = True, check_positive: bool = True):
+        lmax = check_degree(lmax, "lmax", minimum=1, maximum=400)
+        lmax_factor = check_degree(lmax_factor, "lmax_factor", maximum=2 * lmax)
+        if table is None:
+            table = get_table(lmax, lmax_factor, cache_dir=cache_dir, build=build)
+        elif not isinstance(table, GauntTable):
+            raise InvalidArgumentError(f"table must be a GauntTable, got {type(table).__name__}")
+        elif not table.covers(lmax, lmax_factor):
+            raise BandLimitError(f"the table ({table.lmax},{table.lmax_factor}) does not cover ({lmax},{lmax_factor})")
+        self.table = table.restrict(lmax, lmax_factor)
+        self.lmax = lmax
+        self.lmax_factor = lmax_factor
+        self.nparams = ncoeffs(lmax_factor)
+        self.nbasis = ncoeffs(lmax)
+        self.check_positive = bool(check_positive)
+        ls = degrees(lmax)[1:].astype(float)
+        self._dinv = 1.0 / np.sqrt(ls * (ls + 1.0))
+
+    def __repr__(self) -> str:
+        return f"HarmonicModel(lmax={self.lmax}, lmax_factor={self.lmax_factor})"
+
+    def _params(self, params) -> np.ndarray:
+        if isinstance(params, ConformalFactor):
+            if params.lmax > self.lmax_factor and np.any(params.coefficients[self.nparams:] != 0):
+                raise BandLimitError(f"{params.name} has degree {params.lmax} > lmax_factor = {self.lmax_factor}")
+            return params.truncated(self.lmax_factor).coefficients
+        a = np.asarray(params, dtype=float)
+        if a.shape != (self.nparams,):
+            raise InvalidArgumentError(f"expected {self.nparams} coefficients (La = {self.lmax_factor}), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise InvalidArgumentError("the coefficients of rho contain NaN or inf")
+        return a
+
+    def mass_matrix(self, params) -> np.ndarray:
+        """The full symmetric mass matrix M(a), (N, N)."""
+        return self.table.mass_matrix(self._params(params))
+
+    def spectrum(self, params, k: int) -> SpectrumResult:
+        """First k eigenpairs (λ₀ = 0 included) for the factor coefficients ``params`` or a ConformalFactor."""
+        a = self._params(params)
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+            raise InvalidArgumentError(f"k must be a positive integer, got {k!r}")
+        if k > self.nbasis:
+            raise BandLimitError(f"k = {k} eigenpairs asked of a basis of {self.nbasis} functions (Lb = {self.lmax}); "
+                                 f"raise lmax to at least {int(np.ceil(np.sqrt(k))) - 1}")
+        if self.check_positive:
+            ConformalFactor(a).check_positive()
+        m = self.table.mass_matrix(a, symmetrize=False)
+        if not m[0, 0] > 0:
+            raise NotPositiveError(f"the area a_00*sqrt(4pi) = {a[0] * np.sqrt(4 * np.pi):.6g} is not positive")
+        n = self.nbasis
+        vals = np.zeros(k)
+        vecs = np.zeros((n, k))
+        vecs[0, 0] = 1.0 / np.sqrt(m[0, 0])
+        if k > 1:
+            h = np.empty((n - 1, n - 1))
+            _schur_scaled_upper(m, self._dinv, h)
+            mu, u = scipy.linalg.eigh(h, lower=False, subset_by_index=[n - k, n - 2], driver="evr",
+                                      overwrite_a=True, check_finite=False)
+            if not mu[0] > 0:
+                raise NotPositiveError(
+                    f"the mass matrix is not positive definite (reduced eigenvalue {mu[0]:.3g}); rho is negative "
+                    "or nearly so somewhere")
+            lam = 1.0 / mu[::-1]
+            vr = (u[:, ::-1] * self._dinv[:, None]) * np.sqrt(lam)[None, :]
+            vecs[1:, 1:] = vr
+            vecs[0, 1:] = -(m[0, 1:] @ vr) / m[0, 0]
+            vals[1:] = lam
+        return SpectrumResult(vals, vecs, lmax=self.lmax, lmax_factor=self.lmax_factor)
+
+    def jacobian(self, spec: Spectrum) -> np.ndarray:
+        """∂λ_i/∂a_k = −λ_i v_iᵀ G_k v_i, as a (k, nparams) array."""
+        q = self.table.quadratic_forms(spec.eigenvectors)
+        return -(q * spec.eigenvalues[None, :]).T
+
+    def contract(self, spec: Spectrum, coef: np.ndarray) -> np.ndarray:
+        """Σ_i c_i ∂λ_i/∂a = −Σ_ij G_ijk B_ij with B = V diag(c λ) Vᵀ: one pass over the table, (nparams,)."""
+        coef = np.asarray(coef, dtype=float)
+        if coef.shape != spec.eigenvalues.shape:
+            raise InvalidArgumentError(f"coef must have shape {spec.eigenvalues.shape}, got {coef.shape}")
+        v = spec.eigenvectors
+        b = (v * (coef * spec.eigenvalues)[None, :]) @ v.T
+        return -self.table.contract(b)
+
+
+def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: GauntTable | None = None,
+             cache_dir=None, build: bool = True) -> SpectrumResult:
+    """The first k Laplace–Beltrami eigenpairs of g = ρ g₀ in the harmonic basis of degree <= ``lmax``.
+
+    Parameters
+    ----------
+    rho : ConformalFactor, (N,) flat coefficients, cilm array (2, L+1, L+1) or ``pyshtools.SHCoeffs``
+        The conformal factor.
+    lmax : int
+        Basis band limit Lb; the basis has (Lb+1)**2 functions, so k <= (Lb+1)**2.
+    k : int
+        Number of eigenpairs, λ₀ = 0 included.
+    lmax_factor : int, optional
+        Truncate ρ to this degree La (default: its own band limit, at most 2·Lb).
+    table : GauntTable, optional
+        Gaunt table to use (default: from the cache, built if missing and ``build``).
+
+    Returns
+    -------
+    SpectrumResult
+        ``eigenvalues`` (k,) ascending and M-orthonormal ``eigenvectors`` (N, k).
+
+    Examples
+    --------
+    >>> rho = ConformalFactor.mobius_boost(2.0, lmax=20)
+    >>> spectrum(rho, lmax=20, k=9).eigenvalues.round(8)
+    array([0., 2., 2., 2., 6., 6., 6., 6., 6.])
+    """
+    factor = as_factor(rho)
+    la = factor.lmax if lmax_factor is None else check_degree(lmax_factor, "lmax_factor")
+    lmax = check_degree(lmax, "lmax", minimum=1, maximum=400)
+    if la > 2 * lmax:
+        if np.any(factor.truncated(la).coefficients[ncoeffs(2 * lmax):] != 0):
+            la = 2 * lmax  # degrees above 2·Lb do not couple basis functions
+    model = HarmonicModel(lmax, min(la, 2 * lmax), table=table, cache_dir=cache_dir, build=build)
+    return model.spectrum(factor.truncated(model.lmax_factor), k)
