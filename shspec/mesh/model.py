@@ -1,0 +1,148 @@
+"""The mesh discretization behind the :class:`~shspec.model.SpectralModel` interface.
+
+Parameters are per-vertex conformal factors c (n,), dimensionless: the metric is scaled by c_j near vertex j, so
+that the mass is M(c) = diag(c)·M_lumped while the cotan stiffness L, conformally invariant, stays fixed (NOTES.md).
+With M-orthonormal eigenvectors, ∂λ_i/∂c_j = −λ_i v_i[j]² m_j, m = diag(M_lumped) the vertex areas.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InvalidArgumentError, NotPositiveError
+from ..model import SpectralModel, Spectrum
+from .cotan import cotan_stiffness, vertex_areas
+from .eigen import EigenOptions, eigenpairs
+from .triangle_mesh import TriangleMesh
+
+__all__ = ["MeshModel"]
+
+
+class MeshModel(SpectralModel):
+    """Cotan Laplace–Beltrami operator of a fixed mesh with per-vertex conformal factors as parameters.
+
+    Parameters
+    ----------
+    mesh : TriangleMesh
+        The reference mesh, n vertices (typically the cMCF sphere of a surface, :attr:`CMCFResult.sphere`).
+    options : EigenOptions, optional
+        Passed to :func:`~shspec.mesh.eigen.eigenpairs`.
+
+    Attributes
+    ----------
+    nparams : int
+        n, one conformal factor per vertex.
+    stiffness : (n, n) sparse matrix
+        Cotan L (dimensionless).
+    vertex_areas : (n,) array
+        Lumped areas m_j of the reference mesh (length unit squared).
+    """
+
+    def __init__(self, mesh: TriangleMesh, options: EigenOptions | None = None):
+        if not isinstance(mesh, TriangleMesh):
+            raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
+        if options is not None and not isinstance(options, EigenOptions):
+            raise InvalidArgumentError(f"options must be EigenOptions, got {type(options).__name__}")
+        self.mesh = mesh
+        self.options = options
+        self.stiffness = cotan_stiffness(mesh).tocsr()
+        self.vertex_areas = vertex_areas(mesh)
+        self.nparams = mesh.nvertices
+        # Δ = M⁻¹L with the reference lumped mass: the bi-Laplacian form Lᵀ M⁻¹ L is symmetric semi-definite.
+        self._bilaplacian = (self.stiffness.T @ sp.diags(1.0 / self.vertex_areas) @ self.stiffness).tocsr()
+
+    def _factors(self, c) -> np.ndarray:
+        try:
+            c = np.asarray(c, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise InvalidArgumentError(f"conformal factors must be numeric: {exc}") from None
+        if c.shape != (self.nparams,):
+            raise InvalidArgumentError(f"conformal factors must have shape ({self.nparams},), got {c.shape}")
+        if not np.all(np.isfinite(c)):
+            raise InvalidArgumentError(f"conformal factor at vertex {int(np.flatnonzero(~np.isfinite(c))[0])} "
+                                       "is NaN or inf")
+        if np.any(c <= 0):
+            bad = np.flatnonzero(c <= 0)
+            raise NotPositiveError(f"{bad.size} conformal factors are <= 0 (first: vertex {bad[0]}, "
+                                   f"c = {c[bad[0]]:.3g}); a metric needs c > 0")
+        return c
+
+    def mass(self, c) -> sp.csr_matrix:
+        """M(c) = diag(c · vertex_areas), (n, n), length unit squared."""
+        return sp.diags(self._factors(c) * self.vertex_areas).tocsr()
+
+    def spectrum(self, params, k: int) -> Spectrum:
+        """First k eigenpairs of L v = λ M(c) v (exactly k; see :mod:`shspec.mesh.eigen` on cut multiplets).
+
+        Parameters
+        ----------
+        params : (n,) array
+            Conformal factors c > 0.
+        k : int
+            Number of eigenpairs, 1 ≤ k < n.
+
+        Returns
+        -------
+        Spectrum
+            Eigenvalues (k,) ascending in 1/(length unit)², eigenvectors (n, k) with VᵀM(c)V = I.
+
+        Raises
+        ------
+        NotPositiveError
+            If some c_j ≤ 0.
+        """
+        return eigenpairs(self.stiffness, self.mass(params), k, self.options)
+
+    def _check_spec(self, spec: Spectrum) -> None:
+        if not isinstance(spec, Spectrum):
+            raise InvalidArgumentError(f"expected a Spectrum, got {type(spec).__name__}")
+        if spec.eigenvectors.shape != (self.nparams, spec.k):
+            raise InvalidArgumentError(f"spectrum eigenvectors must have shape ({self.nparams}, {spec.k}), got "
+                                       f"{spec.eigenvectors.shape}")
+
+    def jacobian(self, spec: Spectrum) -> np.ndarray:
+        """∂λ_i/∂c_j = −λ_i v_i[j]² m_j as a (k, n) array (1/area, per unit of c)."""
+        self._check_spec(spec)
+        V = spec.eigenvectors
+        return -(spec.eigenvalues[:, None] * (V.T ** 2)) * self.vertex_areas[None, :]
+
+    def contract(self, spec: Spectrum, coef) -> np.ndarray:
+        """Σ_i coef_i ∂λ_i/∂c, shape (n,), for coef (k,): the adjoint gradient, O(n k)."""
+        self._check_spec(spec)
+        coef = np.asarray(coef, dtype=float)
+        if coef.shape != (spec.k,):
+            raise InvalidArgumentError(f"coef must have shape ({spec.k},), got {coef.shape}")
+        V = spec.eigenvectors
+        return -((V ** 2) @ (coef * spec.eigenvalues)) * self.vertex_areas
+
+    def bilaplacian_penalty(self, params, weight: float) -> tuple[float, np.ndarray]:
+        """Smoothness regularizer R(c) = w ∫ (Δc)² dA and its gradient, on the reference mesh.
+
+        Discretized as R = w (Lc)ᵀ M₀⁻¹ (Lc), M₀ the lumped reference mass and Δc = M₀⁻¹ L c the cotan Laplacian;
+        ∇R = 2 w Lᵀ M₀⁻¹ L c.  It vanishes on constants.
+
+        Parameters
+        ----------
+        params : (n,) array
+            Conformal factors c (any sign is accepted here: the penalty is a quadratic form).
+        weight : float
+            w ≥ 0; R has the unit of w divided by area.
+
+        Returns
+        -------
+        value : float
+        gradient : (n,) array
+        """
+        c = np.asarray(params, dtype=float)
+        if c.shape != (self.nparams,) or not np.all(np.isfinite(c)):
+            raise InvalidArgumentError(f"params must be a finite array of shape ({self.nparams},)")
+        weight = float(weight)
+        if not np.isfinite(weight) or weight < 0:
+            raise InvalidArgumentError(f"weight must be finite and >= 0, got {weight}")
+        Bc = self._bilaplacian @ c
+        return weight * float(c @ Bc), 2.0 * weight * Bc
+
+    def bilaplacian(self) -> sp.csr_matrix:
+        """The symmetric semi-definite (n, n) matrix B = Lᵀ M₀⁻¹ L, so that R(c) = w cᵀBc (Hessian 2wB)."""
+        return self._bilaplacian
