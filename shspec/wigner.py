@@ -22,9 +22,10 @@ fixed by sgn w(jmax) = (−1)^(j2 − j3 − m1).
 
 Two implementations of the same sweeps:
 
-* :func:`family_into` in double precision, for the hot loop of the Gaunt table builder.  Its error is absolute,
-  ≈ 2.4e-15 × (largest |w| of the family) at l ≤ 60: about 2e-14 relative for the large symbols, but the relative
-  error grows near accidental near-zeros of a family (up to ~4e-12 at l ≤ 60).
+* :func:`family_into` in double precision, for the hot loop of the Gaunt table builder.  Its error is absolute:
+  typically a few 1e-15 × (largest |w| of the family), at most 1.2e-14 × max|w| measured at l ≤ 60 and 5e-14 at
+  l ≤ 1000, so the relative error grows near accidental near-zeros of a family (measured up to 4e-11 at l ≤ 60,
+  1e-9 at l ≤ 200).
 * :func:`family_into_dd` in double-double arithmetic (~32 digits, error-free TwoSum/TwoProd), rounded to double at
   the end; the public :func:`wigner3j_family` and :func:`wigner3j` use it.  Every nonzero symbol with l ≤ 60 is
   within a few ulps (measured max 4.4e-16 relative, requirement 1e-13), and exact zeros (structural or not) are
@@ -105,9 +106,9 @@ def family_into(j2, j3, m2, m3, out):
     """Fill ``out[0:n]`` with w(jmin), …, w(jmax) of one family in double precision; returns (jmin, n).
 
     ``out`` needs n = j2 + j3 − jmin + 1 entries.  This is the fast path used by the Gaunt table builder: the error
-    is absolute, ≈ 2.4e-15 × max|w| at l ≤ 60 (tested ≤ 1e-14 × max|w|), so symbols near an accidental node of the
-    family have larger *relative* errors; :func:`family_into_dd` is the accurate twin.  Cost (one core): ~0.4 µs
-    per family at l = 10, ~1 µs at l = 60, ~15 µs at l = 1000.
+    is absolute, a few 1e-15 × max|w| typically and ≤ 1.2e-14 × max|w| measured at l ≤ 60 (tested ≤ 2e-14), so
+    symbols near an accidental node of the family have larger *relative* errors; :func:`family_into_dd` is the
+    accurate twin.  Cost (one core): ~0.2 µs per family at l ≤ 10, ~1 µs at l ≤ 60, ~20 µs at l ≤ 1000.
     """
     jmin, jmax = family_range(j2, j3, m2, m3)
     if jmin > jmax:
@@ -134,7 +135,7 @@ def family_into(j2, j3, m2, m3, out):
             pb -= 1
         for t in range(n):
             out[t] = back[t]
-        return _normalize(out, n, jmin, j2, j3, m1)
+        return _normalize(out, n, jmin, j2, j3, m1, 1.0)
 
     # forward sweep from jmin through the lower forbidden region
     out[0] = 1.0
@@ -157,12 +158,14 @@ def family_into(j2, j3, m2, m3, out):
     scale = num / den
     for t in range(mid, n):
         out[t] = back[t] * scale
-    return _normalize(out, n, jmin, j2, j3, m1)
+    return _normalize(out, n, jmin, j2, j3, m1, scale)
 
 
 @nb.njit(cache=True, nogil=True)
-def _normalize(out, n, jmin, j2, j3, m1):
-    # the sum is accumulated with the largest values scaled to O(1) so that it neither overflows nor underflows
+def _normalize(out, n, jmin, j2, j3, m1, sign_last):
+    # the sum is accumulated with the largest values scaled to O(1) so that it neither overflows nor underflows.
+    # sign_last carries the sign of the unnormalized w(jmax): the value itself may have underflowed to 0 in the
+    # rescalings when the upper forbidden region is deep (which used to flip whole families at large l).
     big = 0.0
     for t in range(n):
         big = max(big, abs(out[t]))
@@ -171,7 +174,7 @@ def _normalize(out, n, jmin, j2, j3, m1):
         v = out[t] / big
         s += (2.0 * (jmin + t) + 1.0) * v * v
     c = 1.0 / (big * math.sqrt(s))
-    if (out[n - 1] < 0) == ((j2 - j3 - m1) % 2 == 0):
+    if (sign_last < 0) == ((j2 - j3 - m1) % 2 == 0):
         c = -c
     for t in range(n):
         out[t] *= c
@@ -320,8 +323,8 @@ def family_into_dd(j2, j3, m2, m3, hi, lo):
     ``hi`` alone is the correctly rounded double of ``hi + lo`` and is what :func:`wigner3j_family` returns.
     Structural zeros (B ≡ 0, e.g. all m = 0 with odd j1 + j2 + j3) come out as exact zeros.
 
-    Cost (one core, measured by ``benchmarks/wigner_accuracy.py``): about 6–8× the double :func:`family_into`,
-    e.g. ~2 µs per family at l = 10, ~10 µs at l = 60, ~0.15 ms at l = 1000 (see docs/wigner_accuracy.md).
+    Cost (one core, measured by ``benchmarks/wigner_accuracy.py``): 6–10× the double :func:`family_into`,
+    ~1.4 µs per family at l ≤ 10, ~7 µs at l ≤ 60, ~0.12 ms at l ≤ 1000 (see docs/wigner_accuracy.md).
 
     Parameters
     ----------
@@ -381,7 +384,7 @@ def family_into_dd(j2, j3, m2, m3, hi, lo):
         for t in range(n):
             hi[t] = kh[t]
             lo[t] = kl[t]
-        return _normalize_dd(hi, lo, n, jmin, j2, j3, m1)
+        return _normalize_dd(hi, lo, n, jmin, j2, j3, m1, 1.0)
 
     # forward sweep from jmin through the lower forbidden region (two-term start: A(jmin) = 0)
     hi[0] = 1.0
@@ -413,7 +416,18 @@ def family_into_dd(j2, j3, m2, m3, hi, lo):
             for t in range(pb, n):
                 kh[t] *= _DD_TINY
                 kl[t] *= _DD_TINY
-    # least-squares match on the two points both sweeps hold
+    # bring both sweeps to O(1) at the meeting points by exact powers of two, so that the products below cannot
+    # overflow (Veltkamp splitting overflows above ~2**996), then least-squares match on the two points
+    ef = math.frexp(max(abs(hi[mid]), abs(hi[mid + 1])))[1]
+    ek = math.frexp(max(abs(kh[mid]), abs(kh[mid + 1])))[1]
+    f = math.ldexp(1.0, -ef)
+    for t in range(mid + 2):
+        hi[t] *= f
+        lo[t] *= f
+    f = math.ldexp(1.0, -ek)
+    for t in range(mid, n):
+        kh[t] *= f
+        kl[t] *= f
     xh, xl = _dd_mul(hi[mid], lo[mid], kh[mid], kl[mid])
     yh, yl = _dd_mul(hi[mid + 1], lo[mid + 1], kh[mid + 1], kl[mid + 1])
     nh, nl = _dd_add(xh, xl, yh, yl)
@@ -423,12 +437,13 @@ def family_into_dd(j2, j3, m2, m3, hi, lo):
     sh, sl = _dd_div(nh, nl, dh, dl)
     for t in range(mid, n):
         hi[t], lo[t] = _dd_mul(kh[t], kl[t], sh, sl)
-    return _normalize_dd(hi, lo, n, jmin, j2, j3, m1)
+    return _normalize_dd(hi, lo, n, jmin, j2, j3, m1, sh)
 
 
 @nb.njit(cache=True, nogil=True)
-def _normalize_dd(hi, lo, n, jmin, j2, j3, m1):
-    # scale by an exact power of two so that the largest value is O(1), then divide by sqrt(Σ (2 j1 + 1) w²)
+def _normalize_dd(hi, lo, n, jmin, j2, j3, m1, sign_last):
+    # scale by an exact power of two so that the largest value is O(1), then divide by sqrt(Σ (2 j1 + 1) w²);
+    # sign_last is the sign of the unnormalized w(jmax), which may have underflowed to 0 (see _normalize)
     big = 0.0
     for t in range(n):
         big = max(big, abs(hi[t]))
@@ -443,7 +458,7 @@ def _normalize_dd(hi, lo, n, jmin, j2, j3, m1):
         sh, sl = _dd_add(sh, sl, qh, ql)
     rh, rl = _dd_sqrt(sh, sl)
     ch, cl = _dd_div(1.0, 0.0, rh, rl)
-    if (hi[n - 1] < 0) == ((j2 - j3 - m1) % 2 == 0):
+    if (sign_last < 0) == ((j2 - j3 - m1) % 2 == 0):
         ch, cl = -ch, -cl
     for t in range(n):
         hi[t], lo[t] = _dd_mul(hi[t], lo[t], ch, cl)
@@ -477,8 +492,8 @@ def wigner3j_family(j2: int, j3: int, m2: int, m3: int) -> tuple[int, np.ndarray
     Notes
     -----
     Computed in double-double (:func:`family_into_dd`) and rounded: every nonzero symbol with l ≤ 60 to ≤ 1e-13
-    relative (measured ≤ 5e-16), exact zeros as 0.0; see docs/wigner_accuracy.md for larger l.  Cost ~10 µs per
-    family at l = 60; when the absolute error 1e-14 × max|w| is enough, :func:`family_into` is 10× faster.
+    relative (measured ≤ 5e-16), exact zeros as 0.0; see docs/wigner_accuracy.md for larger l.  Cost ~7 µs per
+    family at l ≤ 60; when an absolute error of 2e-14 × max|w| is enough, :func:`family_into` is 6–10× faster.
     """
     j2, j3, m2, m3 = (_check_int(n, v) for n, v in (("j2", j2), ("j3", j3), ("m2", m2), ("m3", m3)))
     if j2 < 0 or j3 < 0:
