@@ -14,7 +14,7 @@ import argparse
 import sys
 import time
 
-from shspec.cache import cache_dir, get_table, list_tables, load_table, table_path, verify_table
+from shspec.cache import cache_dir, ensure_cache_dir, get_table, list_tables, load_table, table_path, verify_table
 from shspec.errors import ShspecError
 from shspec.table import check_limits
 
@@ -109,7 +109,9 @@ def main(argv: list[str] | None = None) -> int:
                 where = table.path or f"restricted from the cached {tuple(table.metadata['restricted_from'])}"
                 print(f"cached: {where}  {table.values.size:,d} values (use --force to rebuild)")
                 return 0
-        table_path(lmax, lmax_factor, args.cache_dir).unlink(missing_ok=True)
+        else:
+            ensure_cache_dir(cache_dir(args.cache_dir))
+            table_path(lmax, lmax_factor, args.cache_dir).unlink(missing_ok=True)
         start = time.perf_counter()
         table = get_table(lmax, lmax_factor, cache_dir=args.cache_dir, progress=not args.quiet)
         seconds = time.perf_counter() - start
@@ -119,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
     except ShspecError as exc:
         print(f"precompute: error: {exc}", file=sys.stderr)
         return 1
-    except FileNotFoundError as exc:
+    except (FileNotFoundError, NotADirectoryError) as exc:
         print(f"precompute: error: {exc}", file=sys.stderr)
         return 1
 

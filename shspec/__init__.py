@@ -2,9 +2,11 @@
 
 from .errors import *  # noqa: F401,F403
 from .errors import __all__ as _errors_all
+from .gaunt import real_gaunt
+from .wigner import wigner3j
 from .harmonics import cilm_to_vector, degree_order, flat_index, ncoeffs, vector_to_cilm, vector_to_shcoeffs
 
 __version__ = "0.1.0"
 
 __all__ = [*_errors_all, "cilm_to_vector", "degree_order", "flat_index", "ncoeffs", "vector_to_cilm",
-           "vector_to_shcoeffs", "__version__"]
+           "vector_to_shcoeffs", "real_gaunt", "wigner3j", "__version__"]

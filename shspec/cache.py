@@ -40,7 +40,7 @@ from .errors import (BandLimitError, CacheLocationError, CorruptTableError, Tabl
 from .table import GauntTable, build_table, check_limits, table_size
 
 __all__ = ["CONVENTION", "FORMAT_VERSION", "TableInfo", "cache_dir", "table_path", "save_table", "load_table",
-           "get_table", "list_tables", "verify_table"]
+           "get_table", "list_tables", "verify_table", "ensure_cache_dir"]
 
 FORMAT_VERSION = 1
 CONVENTION = "real-ortho-csphase1-pyshtools; flat i=l*l+l+m; G_ijk=int Y_i Y_j Y_k dOmega"
@@ -66,7 +66,8 @@ def table_path(lmax: int, lmax_factor: int, directory: str | os.PathLike | None 
     return cache_dir(directory) / f"gaunt_Lb{lmax}_La{lmax_factor}.h5"
 
 
-def _writable_dir(directory: Path) -> Path:
+def ensure_cache_dir(directory: Path) -> Path:
+    """Create the cache directory if needed; raise CacheLocationError if it is a file or not writable."""
     if directory.exists() and not directory.is_dir():
         raise CacheLocationError(f"the cache location {directory} is a file, not a directory")
     try:
@@ -105,7 +106,7 @@ def save_table(table: GauntTable, directory: str | os.PathLike | None = None, *,
     """Write ``table`` to the cache atomically (temporary file in the same folder, fsync, rename); returns the path."""
     from . import __version__
 
-    directory = _writable_dir(cache_dir(directory))
+    directory = ensure_cache_dir(cache_dir(directory))
     path = table_path(table.lmax, table.lmax_factor, directory)
     checksum = _checksum(table.values)
     created = datetime.now(timezone.utc).isoformat(timespec="seconds")
@@ -274,7 +275,7 @@ def get_table(lmax: int, lmax_factor: int, *, cache_dir: str | os.PathLike | Non
             raise
         warnings.warn(f"rebuilding the Gaunt table: {exc}", stacklevel=2)
     path = table_path(lmax, lmax_factor, directory)
-    _writable_dir(path.parent)
+    ensure_cache_dir(path.parent)
     with _locked(path):
         # another process may have built it while we waited for the lock
         if path.exists():

@@ -83,7 +83,7 @@ class MeshCentering:
     iterations: int
 
 
-def center_mesh(sphere: TriangleMesh, weights, *, tol: float = 1e-10, max_iter: int = 50) -> MeshCentering:
+def center_mesh(sphere: TriangleMesh, weights, *, tol: float = 1e-12, max_iter: int = 50) -> MeshCentering:
     """Möbius-centre a spherical mesh: move its vertices by sphere translations until Σ w_i x_i = 0.
 
     Parameters
@@ -93,7 +93,7 @@ def center_mesh(sphere: TriangleMesh, weights, *, tol: float = 1e-10, max_iter: 
     weights : (n,) array
         Positive mass per vertex, e.g. the vertex areas of the original surface (the pulled-back area measure,
         which a Möbius map of the sphere does not change).
-    tol : float, default 1e-10
+    tol : float, default 1e-12
         Stop when |Σ w_i x_i| / Σ w_i ≤ tol.
     max_iter : int, default 50
 

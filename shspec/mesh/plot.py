@@ -1,0 +1,66 @@
+"""Maps of per-vertex values on a spherical mesh, in the Hammer equal-area projection."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InvalidArgumentError
+from .triangle_mesh import TriangleMesh
+
+__all__ = ["plot_hammer"]
+
+
+def plot_hammer(sphere: TriangleMesh, values, *, ax=None, cmap: str = "viridis", title: str | None = None,
+                label: str | None = None, log: bool = False):
+    """Draw per-vertex values of a spherical mesh on a Hammer projection (longitude from +x, latitude from z = 0).
+
+    Parameters
+    ----------
+    sphere : TriangleMesh
+        Mesh with vertices on (or near) the unit sphere; only their directions are used.
+    values : (n,) array
+        One value per vertex, linearly interpolated over each face (Gouraud shading).
+    ax : matplotlib Axes with ``projection="hammer"``, optional
+        Default: a new figure.
+    cmap : str
+        Matplotlib colormap name.
+    title, label : str, optional
+        Axes title and colour-bar label.
+    log : bool
+        Colour by log10 of the values (they must then be > 0).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Notes
+    -----
+    Faces that straddle the ±180° meridian are left out (a thin gap there) rather than smeared across the map.
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import LogNorm
+    from matplotlib.tri import Triangulation
+
+    if not isinstance(sphere, TriangleMesh):
+        raise InvalidArgumentError(f"expected a TriangleMesh, got {type(sphere).__name__}")
+    f = np.asarray(values, dtype=float)
+    if f.shape != (sphere.nvertices,) or not np.all(np.isfinite(f)):
+        raise InvalidArgumentError(f"values must be a finite array of shape ({sphere.nvertices},)")
+    if log and np.any(f <= 0):
+        raise InvalidArgumentError("log colouring needs values > 0")
+    x = sphere.vertices / np.linalg.norm(sphere.vertices, axis=1)[:, None]
+    lon = np.arctan2(x[:, 1], x[:, 0])
+    lat = np.arcsin(np.clip(x[:, 2], -1.0, 1.0))
+    tri = Triangulation(lon, lat, sphere.faces)
+    span = np.ptp(lon[sphere.faces], axis=1)
+    tri.set_mask(span > np.pi)
+    if ax is None:
+        fig = plt.figure(figsize=(8, 4.5))
+        ax = fig.add_subplot(projection="hammer")
+    fig = ax.figure
+    art = ax.tripcolor(tri, f, shading="gouraud", cmap=cmap, norm=LogNorm() if log else None)
+    ax.grid(True, alpha=0.4)
+    fig.colorbar(art, ax=ax, orientation="horizontal", shrink=0.6, pad=0.08, label=label)
+    if title:
+        ax.set_title(title, pad=18)
+    return fig

@@ -1,0 +1,130 @@
+"""The table cache: atomic, locked, validated; corrupt or mismatched files are never used silently."""
+
+import multiprocessing
+import os
+import warnings
+
+import h5py
+import numpy as np
+import pytest
+
+from shspec.cache import get_table, list_tables, load_table, save_table, table_path, verify_table
+from shspec.errors import BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError
+from shspec.table import build_table
+
+
+def test_round_trip_and_metadata(tmp_path):
+    table = get_table(10, 6, cache_dir=tmp_path)
+    path = table_path(10, 6, tmp_path)
+    assert table.path == path and path.exists()
+    again = load_table(10, 6, tmp_path)
+    np.testing.assert_array_equal(again.values, table.values)
+    assert again.metadata["format_version"] == 1 and again.metadata["checksum"].startswith("blake2b:")
+    assert [t.path for t in list_tables(tmp_path)] == [path]
+    assert not list(tmp_path.glob("*.tmp"))
+    assert verify_table(again, 300) < 1e-15
+
+
+def test_larger_table_serves_smaller(tmp_path):
+    get_table(12, 8, cache_dir=tmp_path)
+    small = load_table(9, 5, tmp_path)
+    np.testing.assert_array_equal(small.values, build_table(9, 5).values)
+    assert not table_path(9, 5, tmp_path).exists()
+    with pytest.raises(FileNotFoundError):
+        load_table(13, 5, tmp_path)
+    with pytest.raises(BandLimitError, match="precompute"):
+        get_table(13, 5, cache_dir=tmp_path, build=False)
+
+
+def _flip_byte(path, where):
+    data = bytearray(path.read_bytes())
+    data[int(len(data) * where)] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def test_corrupt_values_fail_checksum(tmp_path):
+    get_table(10, 6, cache_dir=tmp_path)
+    path = table_path(10, 6, tmp_path)
+    with h5py.File(path, "r+") as f:
+        f["values"][5] += 1e-12
+    with pytest.raises(CorruptTableError, match="checksum"):
+        load_table(10, 6, tmp_path)
+
+
+def test_truncated_file_is_detected_and_rebuilt_on_request(tmp_path):
+    get_table(10, 6, cache_dir=tmp_path)
+    path = table_path(10, 6, tmp_path)
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+    with pytest.raises(CorruptTableError, match="truncated|corrupt"):
+        get_table(10, 6, cache_dir=tmp_path)
+    with pytest.warns(UserWarning, match="rebuilding"):
+        table = get_table(10, 6, cache_dir=tmp_path, rebuild_corrupt=True)
+    np.testing.assert_array_equal(load_table(10, 6, tmp_path).values, table.values)
+
+
+def test_random_byte_damage_never_passes(tmp_path):
+    get_table(8, 4, cache_dir=tmp_path)
+    path = table_path(8, 4, tmp_path)
+    pristine = path.read_bytes()
+    for where in (0.1, 0.5, 0.8, 0.97):
+        path.write_bytes(pristine)
+        _flip_byte(path, where)
+        try:
+            table = load_table(8, 4, tmp_path)
+        except (CorruptTableError, TableMismatchError):
+            continue
+        # a flip in unused padding of the HDF5 file is harmless; then the values must be intact
+        np.testing.assert_array_equal(table.values, build_table(8, 4).values)
+
+
+def test_wrong_version_and_limits(tmp_path):
+    get_table(10, 6, cache_dir=tmp_path)
+    path = table_path(10, 6, tmp_path)
+    with h5py.File(path, "r+") as f:
+        f.attrs["format_version"] = 99
+    with pytest.raises(TableMismatchError, match="format version 99"):
+        load_table(10, 6, tmp_path)
+    get_table(8, 4, cache_dir=tmp_path)
+    os.replace(table_path(8, 4, tmp_path), table_path(9, 4, tmp_path))
+    with pytest.raises(TableMismatchError, match="holds the table \\(8,4\\)"):
+        load_table(9, 4, tmp_path)
+
+
+def test_unusable_cache_locations(tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    with pytest.raises(CacheLocationError, match="is a file"):
+        get_table(4, 2, cache_dir=afile)
+    with pytest.raises(CacheLocationError):
+        get_table(4, 2, cache_dir="/proc/shspec-cannot-exist")
+
+
+def _build_in_child(directory, queue):
+    table = get_table(16, 8, cache_dir=directory)
+    queue.put(float(table.values.sum()))
+
+
+def test_concurrent_builds_end_with_one_valid_file(tmp_path):
+    ctx = multiprocessing.get_context("spawn")
+    queue = ctx.Queue()
+    procs = [ctx.Process(target=_build_in_child, args=(str(tmp_path), queue)) for _ in range(2)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(timeout=300)
+    assert all(p.exitcode == 0 for p in procs)
+    sums = [queue.get(timeout=5) for _ in procs]
+    assert sums[0] == sums[1]
+    files = sorted(x.name for x in tmp_path.iterdir())
+    assert files == ["gaunt_Lb16_La8.h5", "gaunt_Lb16_La8.h5.lock"]
+    np.testing.assert_array_equal(load_table(16, 8, tmp_path).values, build_table(16, 8).values)
+
+
+def test_save_refuses_a_file_as_directory(tmp_path):
+    afile = tmp_path / "f"
+    afile.write_text("")
+    with pytest.raises(CacheLocationError):
+        save_table(build_table(3, 2), afile)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        save_table(build_table(3, 2), tmp_path)

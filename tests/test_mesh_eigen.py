@@ -1,0 +1,131 @@
+"""Cotan matrices and the shift-invert block Lanczos eigensolver: closed forms, lapy, dense solves, multiplets."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from shspec.errors import ConvergenceError, InvalidArgumentError
+from shspec.mesh.cotan import cotan_stiffness, mass_matrix, vertex_areas
+from shspec.mesh.eigen import EigenOptions, eigenpairs, mesh_spectrum
+from shspec.mesh.io import load_mesh
+from shspec.mesh.shapes import blob, icosphere
+
+MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
+needs_meshes = pytest.mark.skipif(not MESHES.is_dir(), reason=f"test meshes not found at {MESHES}")
+lapy = pytest.importorskip("lapy")
+
+
+def _lapy(mesh, lump):
+    return lapy.Solver(lapy.TriaMesh(mesh.vertices, mesh.faces), lump=lump)
+
+
+def test_matrices_match_lapy_and_identities():
+    mesh = blob(3)
+    L = cotan_stiffness(mesh)
+    ref_l, ref_c = _lapy(mesh, True), _lapy(mesh, False)
+    assert abs(L - ref_l.stiffness).max() < 1e-13
+    assert abs(mass_matrix(mesh, "consistent") - ref_c.mass).max() < 1e-16
+    np.testing.assert_allclose(mass_matrix(mesh).diagonal(), ref_l.mass.diagonal(), rtol=1e-14)
+    # Rows of L sum to 0; both masses integrate 1 to the area; L is symmetric.
+    assert np.abs(L @ np.ones(mesh.nvertices)).max() < 1e-12
+    assert abs(L - L.T).max() == 0
+    for kind in ("lumped", "consistent"):
+        assert mass_matrix(mesh, kind).sum() == pytest.approx(mesh.area(), rel=1e-14)
+    # Dirichlet energy of a linear function x·a on a closed surface is |a|²·area minus its normal part;
+    # for the coordinate functions, Σ_d x_dᵀ L x_d = 2·area (each tangent plane carries two unit directions).
+    x = mesh.vertices
+    assert np.einsum("id,id->", x, L @ x) == pytest.approx(2 * mesh.area(), rel=1e-12)
+
+
+def test_mass_kind_error():
+    with pytest.raises(InvalidArgumentError, match="mass kind"):
+        mass_matrix(icosphere(1), "diagonal")
+
+
+def test_icosphere_converges_at_order_h2():
+    # Relative error of the l = 1..3 eigenvalue groups (their means: the icosahedral splitting averages out).
+    errs = []
+    for s in (3, 4, 5):
+        lam = mesh_spectrum(icosphere(s), 16, whole_multiplets=False).eigenvalues
+        groups = [lam[1:4].mean() / 2 - 1, lam[4:9].mean() / 6 - 1, lam[9:16].mean() / 12 - 1]
+        errs.append(np.abs(groups))
+    errs = np.array(errs)
+    orders = np.log2(errs[:-1] / errs[1:])
+    np.testing.assert_allclose(orders, 2.0, atol=0.1)
+
+
+def test_agrees_with_lapy_on_icosphere():
+    mesh = icosphere(4)
+    ours = mesh_spectrum(mesh, 60, whole_multiplets=False)
+    ref = np.sort(_lapy(mesh, True).eigs(k=60)[0])
+    np.testing.assert_allclose(ours.eigenvalues, ref, rtol=0, atol=1e-8)
+
+
+@needs_meshes
+@pytest.mark.parametrize("mass", ["lumped", "consistent"])
+def test_agrees_with_lapy_on_bunny(mass):
+    mesh = load_mesh(MESHES / "bunny_1200.obj")
+    ours = mesh_spectrum(mesh, 30, mass, whole_multiplets=False)
+    ref = np.sort(_lapy(mesh, mass == "lumped").eigs(k=30)[0])
+    np.testing.assert_allclose(ours.eigenvalues, ref, rtol=1e-10)
+
+
+@pytest.mark.parametrize("mass", ["lumped", "consistent"])
+def test_eigenpairs_are_m_orthonormal_with_small_residual(mass):
+    mesh = blob(4)
+    L, M = cotan_stiffness(mesh), mass_matrix(mesh, mass)
+    spec = eigenpairs(L, M, 40)
+    V, lam = spec.eigenvectors, spec.eigenvalues
+    np.testing.assert_allclose(V.T @ (M @ V), np.eye(40), atol=1e-12)
+    assert np.all(np.diff(lam) >= 0) and abs(lam[0]) < 1e-10
+    res = np.linalg.norm(L @ V - (M @ V) * lam, axis=0) / np.linalg.norm(M @ V, axis=0)
+    assert res.max() < 1e-6 * lam[-1]
+
+
+def test_lanczos_matches_dense():
+    mesh = blob(4)
+    L, M = cotan_stiffness(mesh), mass_matrix(mesh)
+    dense = sla.eigh(L.toarray(), M.toarray(), eigvals_only=True, subset_by_index=[0, 49])
+    lanczos = eigenpairs(L, M, 50).eigenvalues
+    np.testing.assert_allclose(lanczos, dense, rtol=1e-11, atol=1e-11)
+
+
+def _copies(mesh, r):
+    """The pencil of r disjoint copies of a mesh: every eigenvalue has multiplicity r exactly."""
+    L, M = cotan_stiffness(mesh), mass_matrix(mesh)
+    return sp.block_diag([L] * r, format="csr"), sp.block_diag([M] * r, format="csr")
+
+
+def test_exact_multiplets_are_not_cut():
+    single = mesh_spectrum(icosphere(3), 12, whole_multiplets=False).eigenvalues
+    L, M = _copies(icosphere(3), 3)  # 1926 vertices: the Lanczos path
+    # k = 4 cuts the triple {λ1, λ1, λ1} after its first member: whole_multiplets completes it.
+    spec = eigenpairs(L, M, 4, whole_multiplets=True)
+    np.testing.assert_allclose(spec.eigenvalues, np.repeat(single[:2], 3), atol=1e-10)
+    cut = eigenpairs(L, M, 4, whole_multiplets=False)
+    assert cut.k == 4
+    np.testing.assert_allclose(cut.eigenvalues, np.repeat(single[:2], 3)[:4], atol=1e-10)
+    # Multiplicity 12 > the block size 8 is still found in full.
+    L, M = _copies(icosphere(2), 12)
+    single = np.sort(np.linalg.eigvalsh(np.diag(1 / np.sqrt(vertex_areas(icosphere(2)))) @ cotan_stiffness(
+        icosphere(2)).toarray() @ np.diag(1 / np.sqrt(vertex_areas(icosphere(2))))))
+    spec = eigenpairs(L, M, 13, EigenOptions(dense_below=0), whole_multiplets=True)
+    np.testing.assert_allclose(spec.eigenvalues, np.repeat(single[:2], 12), atol=1e-9)
+
+
+def test_argument_errors():
+    mesh = icosphere(1)
+    L, M = cotan_stiffness(mesh), mass_matrix(mesh)
+    with pytest.raises(InvalidArgumentError, match="k must be in"):
+        eigenpairs(L, M, mesh.nvertices)
+    with pytest.raises(InvalidArgumentError, match="sparse"):
+        eigenpairs(L.toarray(), M, 3)
+    with pytest.raises(InvalidArgumentError, match="tol"):
+        EigenOptions(tol=0)
+    with pytest.raises(ConvergenceError, match="max_dim"):
+        eigenpairs(*_copies(icosphere(3), 2), 60, EigenOptions(max_dim=40))

@@ -1,0 +1,62 @@
+"""The precompute command line, run as a user would run it."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+
+def run(*args, cache=None):
+    env = dict(os.environ)
+    if cache is not None:
+        env["SHSPEC_CACHE"] = str(cache)
+    return subprocess.run([sys.executable, "-m", "precompute", *args], capture_output=True, text=True, env=env,
+                          timeout=300)
+
+
+def test_build_list_verify_rebuild(tmp_path):
+    out = run("--lmax", "12", "--lmax-factor", "6", "--quiet", cache=tmp_path)
+    assert out.returncode == 0, out.stderr
+    line = out.stdout.strip().splitlines()[-1]
+    assert "gaunt_Lb12_La6.h5" in line and "values/s" in line and "KiB" in line
+    again = run("--lmax", "10", "--lmax-factor", "6", cache=tmp_path)
+    assert again.returncode == 0 and "cached" in again.stdout and "restricted" in again.stdout
+    listing = run("list", cache=tmp_path)
+    assert "Lb=12" in listing.stdout and "La=6" in listing.stdout
+    verify = run("verify", "--lmax", "12", "--lmax-factor", "6", "--samples", "200", cache=tmp_path)
+    assert verify.returncode == 0 and verify.stdout.startswith("OK")
+    rebuild = run("rebuild", "--lmax", "12", "--lmax-factor", "6", "--quiet", cache=tmp_path)
+    assert rebuild.returncode == 0 and "values/s" in rebuild.stdout
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--lmax", "-3", "--lmax-factor", "2"], "band limits are >= 0"),
+    (["--lmax", "10", "--lmax-factor", "30"], "2*lmax"),
+    (["--lmax", "100000", "--lmax-factor", "3"], "absurdly large"),
+    (["--lmax", "ten", "--lmax-factor", "3"], "whole number"),
+    (["build"], "needs --lmax and --lmax-factor"),
+])
+def test_nonsense_arguments(args, message, tmp_path):
+    out = run(*args, cache=tmp_path)
+    assert out.returncode == 2
+    assert message in out.stderr
+
+
+def test_cache_dir_that_is_a_file(tmp_path):
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    out = run("--lmax", "4", "--lmax-factor", "2", "--cache-dir", str(afile))
+    assert out.returncode == 1 and "is a file" in out.stderr
+
+
+def test_verify_without_table(tmp_path):
+    out = run("verify", "--lmax", "4", "--lmax-factor", "2", cache=tmp_path)
+    assert out.returncode == 1 and "no cached Gaunt table" in out.stderr
+
+
+def test_help_explains():
+    out = run("--help")
+    assert out.returncode == 0
+    for word in ("--lmax", "--lmax-factor", "--cache-dir", "--force", "verify", "SHSPEC_CACHE"):
+        assert word in out.stdout
