@@ -59,7 +59,7 @@ class EigenOptions:
     multiplet_rtol : float
         Relative distance under which neighbouring eigenvalues form one degenerate group.
     max_dim : int or None
-        Largest Krylov basis before :class:`ConvergenceError`; None: min(n, 4k + 10b).
+        Largest Krylov basis before :class:`ConvergenceError`; None: min(n, 4k + 25b) (k = 100 needs ~350).
     dense_below : int
         Meshes with fewer vertices are solved densely (:func:`scipy.linalg.eigh`), which is faster there.
     seed : int
@@ -164,7 +164,7 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
     area = float(M.sum())
     sigma = opt.sigma if opt.sigma is not None else 0.45 * 4 * np.pi * k / area
     b = int(opt.block_size)
-    max_dim = min(n, opt.max_dim or 4 * k + 10 * b)
+    max_dim = min(n, opt.max_dim or 4 * k + 25 * b)
     diag = M.diagonal() if M.nnz == np.count_nonzero(M.diagonal()) else None
 
     def mmul(X):
@@ -181,7 +181,11 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
     prev, m, m_next = 0, 0, first.shape[1]
     Q[:, :m_next] = first
     next_check = k + 1
+    nconv = 0
     while True:
+        if m_next + b > max_dim:
+            raise ConvergenceError(f"shift-invert Lanczos: only {nconv} of more than {k} eigenpairs converged "
+                                   f"with a Krylov basis of {m_next} vectors; raise EigenOptions.max_dim")
         # Q[:, m:m_next] is the newest block: apply OP and orthogonalize, first against the previous two blocks
         # (the block three-term recurrence, which removes almost everything), then once against the whole basis
         # (full re-orthogonalization, which removes the rounding errors that make plain Lanczos lose
@@ -233,9 +237,6 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
             nconv = inside.size
             S = S[:, inside]
             return _finish(L, M, Q[:, :m] @ S[:, :nconv], k, opt.multiplet_rtol, whole_multiplets)
-        if m_next + b > max_dim:
-            raise ConvergenceError(f"shift-invert Lanczos: only {nconv} of more than {k} eigenpairs converged "
-                                   f"with a Krylov basis of {m} vectors; raise EigenOptions.max_dim")
 
 
 def _orthonormal_block(basis, W, mmul, rng, scale):
