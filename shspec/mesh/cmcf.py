@@ -93,7 +93,8 @@ class CMCFResult:
         Conformal factors c_i = (vertex area on the input) / (vertex area on ``sphere``), in the input's length
         unit squared per unit-sphere area, so that Σ c_i a_i^sphere = input area.
     roundness : float
-        Roundness of the flowed mesh before the projection (see the module notes).
+        Roundness of the flowed mesh before the projection (see the module notes): the best over the steps taken,
+        whose vertices are the ones projected (on coarse meshes the roundness can creep up again at the end).
     history : (iterations,) array
         Roundness after each step.
     iterations : int
@@ -219,6 +220,7 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
     # The cotan weights are scale invariant, so L₀ of the normalized mesh is L₀ of the input.
     L0 = cotan_stiffness(mesh).tocsc()
     history = []
+    best = (np.inf, x)
     lu = None
     for it in range(1, opt.max_iter + 1):
         m = vertex_areas(mesh.with_vertices(x))
@@ -234,9 +236,11 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
                 x = lu.solve(b)
         x = _normalize(x, None, mesh)
         history.append(roundness(x, vertex_areas(mesh.with_vertices(x))))
+        if history[-1] < best[0]:
+            best = (history[-1], x)
         if history[-1] <= opt.tol or _stalled(history, opt):
             break
-    round_final = history[-1]
+    round_final, x = best
     converged = round_final <= opt.tol or _stalled(history, opt)
     sphere = mesh.with_vertices(x / np.linalg.norm(x, axis=1)[:, None])
     residual = float("nan")
