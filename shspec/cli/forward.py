@@ -1,0 +1,168 @@
+"""``shspec forward`` and ``shspec convergence``: spectra of a conformal factor in the harmonic basis."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InvalidArgumentError
+from ._rho import RHO_HELP, parse_rho
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "forward", help="Laplace-Beltrami spectrum of a conformal factor rho (harmonic Galerkin)",
+        description="Compute the first K eigenvalues of the Laplace-Beltrami operator of g = rho*g0 in the real "
+        "spherical-harmonic basis of degree <= --lmax. Without arguments: a Moebius-boosted sphere, whose exact "
+        "spectrum l(l+1) is printed beside for comparison. The Gaunt table is taken from the cache or built.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--rho", default="boost:2:1,1,1", help=RHO_HELP)
+    p.add_argument("--lmax", type=int, default=30, help="basis band limit Lb")
+    p.add_argument("--lmax-factor", type=int, default=None,
+                   help="band limit La of rho (default: Lb for built-ins, the file's own for files)")
+    p.add_argument("--numeig", type=int, default=36, help="number of eigenvalues K (lambda_0 = 0 included)")
+    p.add_argument("--out", help="save the spectrum with its parameters to this .json or .h5 file")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    p.add_argument("--cache-dir", help="Gaunt table cache (default $SHSPEC_CACHE or the project's cache/)")
+    p.set_defaults(func=run_forward)
+
+    c = sub.add_parser(
+        "convergence", help="convergence of the harmonic spectrum in Lb (or in La), with CSV/JSON and plots",
+        description="Spectra of rho for each basis band limit in --lmax-values (the largest is the reference), the "
+        "relative change of every eigenvalue and the fitted exponential rate per round-sphere multiplet; with "
+        "--factor-values, the same for truncations of rho at fixed Lb. Writes convergence.csv, convergence.json "
+        "and PNG plots into --out. --pl-subdivisions adds the piecewise-linear spectrum of an icosphere carrying "
+        "rho (it converges from below).",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    c.add_argument("--rho", default="boost:2:1,1,1", help=RHO_HELP)
+    c.add_argument("--lmax-values", default="6,8,10,12,14,16,18,20,24",
+                   help="comma-separated basis band limits")
+    c.add_argument("--factor-values", default=None,
+                   help="comma-separated band limits of rho to truncate to (at Lb = the largest --lmax-values)")
+    c.add_argument("--lmax-factor", type=int, default=20, help="band limit of built-in rho")
+    c.add_argument("--numeig", type=int, default=36, help="eigenvalues per spectrum")
+    c.add_argument("--pl-subdivisions", type=int, default=None, help="icosphere subdivisions for the PL spectrum")
+    c.add_argument("--out", default="convergence", help="output folder")
+    c.add_argument("--cache-dir", help="Gaunt table cache")
+    c.set_defaults(func=run_convergence)
+
+
+def _int_list(text: str, name: str) -> list[int]:
+    try:
+        return [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise InvalidArgumentError(f"{name} must be comma-separated whole numbers, got {text!r}") from None
+
+
+def _exact_sphere(k: int) -> np.ndarray:
+    l = np.repeat(np.arange(int(np.sqrt(k)) + 2), 2 * np.arange(int(np.sqrt(k)) + 2) + 1)[:k]
+    return (l * (l + 1)).astype(float)
+
+
+def run_forward(args) -> int:
+    from .. import __version__
+    from ..galerkin import spectrum
+
+    rho = parse_rho(args.rho, args.lmax_factor if args.lmax_factor is not None else args.lmax)
+    start = time.perf_counter()
+    res = spectrum(rho, lmax=args.lmax, k=args.numeig, lmax_factor=args.lmax_factor, cache_dir=args.cache_dir)
+    seconds = time.perf_counter() - start
+    isometric = args.rho.startswith("boost") or args.rho.startswith("sphere")
+    exact = _exact_sphere(args.numeig) * (4 * np.pi / rho.area) if isometric else None
+    record = {"rho": args.rho, "lmax": res.lmax, "lmax_factor": res.lmax_factor, "numeig": args.numeig,
+              "area": rho.area, "eigenvalues": res.eigenvalues.tolist(), "seconds": seconds,
+              "shspec_version": __version__}
+    if exact is not None:
+        rel = np.abs(res.eigenvalues[1:] - exact[1:]) / exact[1:]
+        record["max_relative_error_vs_exact"] = float(rel.max()) if rel.size else 0.0
+    if args.out:
+        _save(Path(args.out), record, res.eigenvectors)
+    if args.json:
+        print(json.dumps(record))
+        return 0
+    print(f"rho = {rho.name}, area {rho.area:.6g}; basis Lb = {res.lmax}, factor La = {res.lmax_factor}; "
+          f"{args.numeig} eigenvalues in {seconds:.2f} s")
+    print(f"{'i':>4s} {'lambda_i':>22s}" + (f" {'exact':>10s} {'rel. error':>10s}" if exact is not None else ""))
+    for i, lam in enumerate(res.eigenvalues):
+        line = f"{i:4d} {lam:22.15f}"
+        if exact is not None:
+            err = abs(lam - exact[i]) / exact[i] if exact[i] else abs(lam)
+            line += f" {exact[i]:10.4f} {err:10.2e}"
+        print(line)
+    if exact is not None:
+        print(f"max relative error against the exact spectrum: {record['max_relative_error_vs_exact']:.2e}")
+    if args.out:
+        print(f"saved to {args.out}")
+    return 0
+
+
+def _save(path: Path, record: dict, vectors: np.ndarray) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.suffix.lower() == ".json":
+        path.write_text(json.dumps(record, indent=1))
+    elif path.suffix.lower() in (".h5", ".hdf5"):
+        import h5py
+
+        with h5py.File(path, "w") as f:
+            f["eigenvalues"] = np.asarray(record["eigenvalues"])
+            f["eigenvectors"] = vectors
+            for key, value in record.items():
+                if key != "eigenvalues":
+                    f.attrs[key] = value
+    else:
+        raise InvalidArgumentError(f"--out must end in .json or .h5, got {path.name}")
+
+
+def run_convergence(args) -> int:
+    import csv
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..convergence import convergence, convergence_in_factor, pl_spectrum_of_factor
+
+    lmax_values = _int_list(args.lmax_values, "--lmax-values")
+    rho = parse_rho(args.rho, args.lmax_factor)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    studies = [convergence(rho, lmax_values, args.numeig, cache_dir=args.cache_dir)]
+    if args.factor_values:
+        studies.append(convergence_in_factor(rho, _int_list(args.factor_values, "--factor-values"), max(lmax_values),
+                                             args.numeig, cache_dir=args.cache_dir))
+    if args.pl_subdivisions is not None:
+        pl = pl_spectrum_of_factor(rho, args.numeig, args.pl_subdivisions)
+        studies[0].pl_eigenvalues[f"PL icosphere({args.pl_subdivisions})"] = pl
+    summary = {"rho": args.rho, "numeig": args.numeig, "studies": []}
+    for study in studies:
+        rows = study.table()
+        with open(out / f"convergence_{study.parameter}.csv", "w", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+        rates = study.rates()
+        summary["studies"].append({
+            "parameter": study.parameter, "values": study.values.tolist(), "fixed": study.fixed,
+            "eigenvalues": study.eigenvalues.tolist(), "rows": rows,
+            "rates_per_group": {f"l{l}": (None if np.isnan(r) else float(r)) for (l, _), r in zip(study.groups(),
+                                                                                             rates)},
+            "pl_eigenvalues": {k: v.tolist() for k, v in study.pl_eigenvalues.items()}})
+        fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
+        study.plot(axes[0])
+        study.plot_spectra(axes[1])
+        axes[0].set_title(f"{rho.name}: convergence in {study.parameter}")
+        fig.tight_layout()
+        fig.savefig(out / f"convergence_{study.parameter}.png", dpi=120)
+        plt.close(fig)
+        finite = rates[~np.isnan(rates)]
+        print(f"{study.parameter}: values {study.values.tolist()}; largest change at the coarsest "
+              f"{rows[0]['max_relative_change']:.2e}, next-to-finest {rows[-2]['max_relative_change']:.2e}; "
+              f"median exponential rate {np.median(finite) if finite.size else float('nan'):.3f} per degree")
+    (out / "convergence.json").write_text(json.dumps(summary, indent=1))
+    print(f"wrote {out}/convergence.json, CSV and PNG files")
+    return 0
