@@ -49,8 +49,7 @@ class MeshModel(SpectralModel):
         self.stiffness = cotan_stiffness(mesh).tocsr()
         self.vertex_areas = vertex_areas(mesh)
         self.nparams = mesh.nvertices
-        # Δ = M⁻¹L with the reference lumped mass: the bi-Laplacian form Lᵀ M⁻¹ L is symmetric semi-definite.
-        self._bilaplacian = (self.stiffness.T @ sp.diags(1.0 / self.vertex_areas) @ self.stiffness).tocsr()
+        self._bilaplacian = None
 
     def _factors(self, c) -> np.ndarray:
         try:
@@ -140,9 +139,12 @@ class MeshModel(SpectralModel):
         weight = float(weight)
         if not np.isfinite(weight) or weight < 0:
             raise InvalidArgumentError(f"weight must be finite and >= 0, got {weight}")
-        Bc = self._bilaplacian @ c
+        Bc = self.bilaplacian() @ c
         return weight * float(c @ Bc), 2.0 * weight * Bc
 
     def bilaplacian(self) -> sp.csr_matrix:
         """The symmetric semi-definite (n, n) matrix B = Lᵀ M₀⁻¹ L, so that R(c) = w cᵀBc (Hessian 2wB)."""
+        if self._bilaplacian is None:
+            # Built on first use: Δ = M₀⁻¹L with the reference lumped mass, and Lᵀ M₀⁻¹ L is symmetric.
+            self._bilaplacian = (self.stiffness.T @ sp.diags(1.0 / self.vertex_areas) @ self.stiffness).tocsr()
         return self._bilaplacian
