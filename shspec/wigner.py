@@ -80,25 +80,30 @@ def family_range(j2, j3, m2, m3):
 
 
 @nb.njit(cache=True, nogil=True)
-def _step_up(w, p, jmin, j2, j3, m1, m2, m3):
-    # w[p+1] from w[p], w[p-1]; rescale everything so far when the growing values approach overflow
+def _step_up(w, p, jmin, j2, j3, m1, m2, m3, a_j):
+    """w[p+1] from w[p], w[p−1], given a_j = A(jmin+p); returns A(jmin+p+1) for the next step.
+
+    Rescales everything so far when the growing values approach overflow.
+    """
     j = jmin + p
-    w[p + 1] = -(_coef_b(j, j2, j3, m1, m2, m3) * w[p] + (j + 1) * _coef_a(j, j2, j3, m1) * w[p - 1]) / (
-        j * _coef_a(j + 1, j2, j3, m1))
+    a_next = _coef_a(j + 1, j2, j3, m1)
+    w[p + 1] = -(_coef_b(j, j2, j3, m1, m2, m3) * w[p] + (j + 1) * a_j * w[p - 1]) / (j * a_next)
     if abs(w[p + 1]) > _HUGE:
         for t in range(p + 2):
             w[t] *= _TINY
+    return a_next
 
 
 @nb.njit(cache=True, nogil=True)
-def _step_down(w, p, jmin, j2, j3, m1, m2, m3):
-    # w[p-1] from w[p], w[p+1]
+def _step_down(w, p, jmin, j2, j3, m1, m2, m3, a_next):
+    """w[p−1] from w[p], w[p+1], given a_next = A(jmin+p+1); returns A(jmin+p) for the next step."""
     j = jmin + p
-    w[p - 1] = -(j * _coef_a(j + 1, j2, j3, m1) * w[p + 1] + _coef_b(j, j2, j3, m1, m2, m3) * w[p]) / (
-        (j + 1) * _coef_a(j, j2, j3, m1))
+    a_j = _coef_a(j, j2, j3, m1)
+    w[p - 1] = -(j * a_next * w[p + 1] + _coef_b(j, j2, j3, m1, m2, m3) * w[p]) / ((j + 1) * a_j)
     if abs(w[p - 1]) > _HUGE:
         for t in range(p - 1, w.size):
             w[t] *= _TINY
+    return a_j
 
 
 @nb.njit(cache=True, nogil=True)
@@ -121,36 +126,39 @@ def family_into(j2, j3, m2, m3, out):
         return jmin, 1
 
     back = np.empty(n)
-    # backward sweep from jmax through the upper forbidden region, where the values grow downwards
+    # backward sweep from jmax through the upper forbidden region, where the values grow downwards; A(j) is
+    # carried from one step to the next, so each step costs one square root
+    a_down = _coef_a(jmax, j2, j3, m1)
     back[n - 1] = 1.0
-    back[n - 2] = -_coef_b(jmax, j2, j3, m1, m2, m3) / ((jmax + 1) * _coef_a(jmax, j2, j3, m1))
+    back[n - 2] = -_coef_b(jmax, j2, j3, m1, m2, m3) / ((jmax + 1) * a_down)
     pb = n - 2  # lowest position filled by the backward sweep
     while pb > 0 and abs(back[pb]) > abs(back[pb + 1]):
-        _step_down(back, pb, jmin, j2, j3, m1, m2, m3)
+        a_down = _step_down(back, pb, jmin, j2, j3, m1, m2, m3, a_down)
         pb -= 1
     if jmin == 0:
         # j2 = j3 and m1 = 0: no lower forbidden region, the backward sweep may run to the end
         while pb > 0:
-            _step_down(back, pb, jmin, j2, j3, m1, m2, m3)
+            a_down = _step_down(back, pb, jmin, j2, j3, m1, m2, m3, a_down)
             pb -= 1
         for t in range(n):
             out[t] = back[t]
         return _normalize(out, n, jmin, j2, j3, m1, 1.0)
 
     # forward sweep from jmin through the lower forbidden region
+    a_up = _coef_a(jmin + 1, j2, j3, m1)
     out[0] = 1.0
-    out[1] = -_coef_b(jmin, j2, j3, m1, m2, m3) / (jmin * _coef_a(jmin + 1, j2, j3, m1))
+    out[1] = -_coef_b(jmin, j2, j3, m1, m2, m3) / (jmin * a_up)
     pf = 1  # highest position filled by the forward sweep
     while pf < pb + 1 and abs(out[pf]) > abs(out[pf - 1]):
-        _step_up(out, pf, jmin, j2, j3, m1, m2, m3)
+        a_up = _step_up(out, pf, jmin, j2, j3, m1, m2, m3, a_up)
         pf += 1
     # through the oscillatory region both directions are neutral: meet in its middle to halve the longer run
     mid = pb if pf > pb else (pf + pb) // 2
     while pf < mid + 1:
-        _step_up(out, pf, jmin, j2, j3, m1, m2, m3)
+        a_up = _step_up(out, pf, jmin, j2, j3, m1, m2, m3, a_up)
         pf += 1
     while pb > mid:
-        _step_down(back, pb, jmin, j2, j3, m1, m2, m3)
+        a_down = _step_down(back, pb, jmin, j2, j3, m1, m2, m3, a_down)
         pb -= 1
     # least-squares match on the two points both sweeps hold; they cannot both be near a node
     num = out[mid] * back[mid] + out[mid + 1] * back[mid + 1]
