@@ -38,8 +38,10 @@ class CMCFOptions:
     Attributes
     ----------
     step : float
-        Time step δ for the surface scaled to area 4π (δ = 4π is lapy's step 1 at unit area).  Large steps reach
-        the fixed point in fewer iterations; on bunny and spot δ = 10 took ~25.
+        Time step δ for the surface scaled to area 4π (δ = 4π is lapy's step 1 at unit area).  From δ ≈ 10 on,
+        the iterates hardly depend on δ (the step is then close to the inverse iteration x ← L₀⁺M_t x, which has
+        the same fixed points), and larger δ makes the lagged preconditioner better: on bunny, spot and blub,
+        δ = 1000 needs 40 % fewer CG iterations than δ = 10 for the same 22-31 steps.
     tol : float
         Stop as soon as roundness ≤ tol.
     stall_iterations, stall_ratio : int, float
@@ -58,7 +60,7 @@ class CMCFOptions:
         Validate the input mesh first (:func:`~shspec.mesh.validate.validate_mesh`).
     """
 
-    step: float = 10.0
+    step: float = 1000.0
     tol: float = 1e-4
     stall_iterations: int = 6
     stall_ratio: float = 0.98
@@ -216,26 +218,29 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
         validate_mesh(mesh)
     start = time.perf_counter()
     areas0 = vertex_areas(mesh)
-    x = _normalize(mesh.vertices, areas0, mesh)
+    x, m = _normalize(mesh.vertices, areas0)
     # The cotan weights are scale invariant, so L₀ of the normalized mesh is L₀ of the input.
     L0 = cotan_stiffness(mesh).tocsc()
     history = []
     best = (np.inf, x)
     lu = None
     for it in range(1, opt.max_iter + 1):
-        m = vertex_areas(mesh.with_vertices(x))
         A = (sp.diags(m) + opt.step * L0).tocsc()
         b = m[:, None] * x
         if lu is None:
             lu = splu(A)
             x, cg_its = lu.solve(b), 0
         else:
-            x, cg_its = _pcg(A, b, x, lu.solve, opt.cg_tol, opt.refactor_after)
+            # Start CG from the best multiple of the current positions: a step mostly shrinks the surface
+            # (by 1/(1 + 2δ) for a round sphere), and only the small rest is left for CG to find.
+            Ax = A @ x
+            x0 = x * (np.einsum("ij,ij->j", x, b) / np.einsum("ij,ij->j", x, Ax))
+            x, cg_its = _pcg(A, b, x0, lu.solve, opt.cg_tol, opt.refactor_after)
             if cg_its > opt.refactor_after:
                 lu = splu(A)
                 x = lu.solve(b)
-        x = _normalize(x, None, mesh)
-        history.append(roundness(x, vertex_areas(mesh.with_vertices(x))))
+        x, m = _normalize(x, vertex_areas(mesh.with_vertices(x)))
+        history.append(roundness(x, m))
         if history[-1] < best[0]:
             best = (history[-1], x)
         if history[-1] <= opt.tol or _stalled(history, opt):
@@ -257,12 +262,13 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
                       success=bool(converged and flips == 0), seconds=time.perf_counter() - start)
 
 
-def _normalize(x, areas, mesh):
-    """Translate the area-weighted centroid to 0 and scale to total area 4π."""
-    if areas is None:
-        areas = vertex_areas(mesh.with_vertices(x))
-    x = x - (areas @ x) / areas.sum()
-    return x * np.sqrt(4 * np.pi / areas.sum())
+def _normalize(x, areas):
+    """Translate the ``areas``-weighted centroid of x (n, 3) to 0 and scale to total area 4π.
+
+    Returns the new positions and the vertex areas (n,) that go with them (translation leaves areas unchanged).
+    """
+    factor = 4 * np.pi / areas.sum()
+    return (x - (areas @ x) / areas.sum()) * np.sqrt(factor), areas * factor
 
 
 def _stalled(history, opt) -> bool:
