@@ -12,7 +12,7 @@ import sys
 
 from ..errors import ShspecError
 
-_COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh"]
+_COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment"]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,157 @@
+"""The experiment runner: one folder per run with the config, raw results, figures and a report.
+
+An experiment is a function ``run(config, out, progress) -> Finding`` registered with :func:`register`.  The runner
+merges its defaults (or its ``--quick`` preset) with a user's TOML file, writes ``config.json``, calls it, and writes
+``report.md`` (the finding in one paragraph with its numbers, tables, figures) and ``meta.json`` (versions, time).
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import shutil
+import time
+import tomllib
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..errors import InvalidArgumentError
+
+__all__ = ["Experiment", "Finding", "EXPERIMENTS", "register", "run_experiment", "load_config"]
+
+
+@dataclass
+class Finding:
+    """What an experiment found.
+
+    Attributes
+    ----------
+    summary : str
+        One paragraph stating the finding with its numbers.
+    tables : dict[str, list[dict]]
+        Named tables (rows of equal keys), written to CSV and shown in the report.
+    figures : list[str]
+        PNG file names inside the run folder, in report order.
+    numbers : dict
+        The key numbers, machine-readable (also in ``meta.json``).
+    """
+
+    summary: str
+    tables: dict = field(default_factory=dict)
+    figures: list = field(default_factory=list)
+    numbers: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A registered experiment: its name, what it reproduces, default and quick configurations, and run function."""
+
+    name: str
+    title: str
+    reproduces: str
+    defaults: dict
+    quick: dict
+    expected_minutes: float
+    run: Callable
+
+
+EXPERIMENTS: dict[str, Experiment] = {}
+
+
+def register(experiment: Experiment) -> Experiment:
+    EXPERIMENTS[experiment.name] = experiment
+    return experiment
+
+
+def load_config(path) -> dict:
+    """Read a TOML configuration file into a dict."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except OSError as exc:
+        raise InvalidArgumentError(f"cannot read the config file {path}: {exc.strerror}") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise InvalidArgumentError(f"{path} is not valid TOML: {exc}") from exc
+
+
+def _merge(base: dict, override: dict, name: str) -> dict:
+    unknown = sorted(set(override) - set(base))
+    if unknown:
+        raise InvalidArgumentError(f"unknown keys for experiment {name!r}: {unknown}; known: {sorted(base)}")
+    out = dict(base)
+    for key, value in override.items():
+        if type(value) is not type(base[key]) and not (isinstance(base[key], float) and isinstance(value, int)):
+            raise InvalidArgumentError(f"{name}.{key} must be {type(base[key]).__name__}, got {value!r}")
+        out[key] = value
+    return out
+
+
+def _write_csv(path: Path, rows: list[dict]) -> None:
+    import csv
+
+    with open(path, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def _fmt(value) -> str:
+    if isinstance(value, float):
+        return f"{value:.3g}"
+    return str(value)
+
+
+def run_experiment(name: str, out, *, config_path=None, quick: bool = False, progress: bool = True) -> Path:
+    """Run experiment ``name`` into the folder ``out``; returns the path of its ``report.md``."""
+    from .. import __version__
+
+    if name not in EXPERIMENTS:
+        raise InvalidArgumentError(f"no experiment {name!r}; available: {', '.join(sorted(EXPERIMENTS))}")
+    exp = EXPERIMENTS[name]
+    config = dict(exp.quick if quick else exp.defaults)
+    if config_path is not None:
+        config = _merge(config, load_config(config_path), name)
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InvalidArgumentError(f"the output {out} is a file")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "config.json").write_text(json.dumps({"experiment": name, "quick": quick, **config}, indent=1))
+    if config_path is not None:
+        shutil.copy(config_path, out / "config.toml")
+    if progress:
+        print(f"{name}: {exp.title}; expected run time about "
+              f"{'under a minute' if quick else f'{exp.expected_minutes:g} minutes'}")
+    start = time.perf_counter()
+    finding = exp.run(config, out, progress)
+    seconds = time.perf_counter() - start
+    for table, rows in finding.tables.items():
+        if rows:
+            _write_csv(out / f"{table}.csv", rows)
+    meta = {"experiment": name, "title": exp.title, "reproduces": exp.reproduces, "quick": quick,
+            "seconds": seconds, "shspec_version": __version__, "numpy": np.__version__,
+            "python": platform.python_version(), "machine": platform.platform(),
+            "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"), "numbers": finding.numbers}
+    (out / "meta.json").write_text(json.dumps(meta, indent=1, default=float))
+    lines = [f"# {exp.title}", "", f"*Reproduces:* {exp.reproduces}. *Run:* `shspec experiment {name}"
+             f"{' --quick' if quick else ''}`, {seconds:.1f} s, shspec {__version__}.", "", "## Finding", "",
+             finding.summary, ""]
+    for fig in finding.figures:
+        lines += [f"![{fig}]({fig})", ""]
+    for table, rows in finding.tables.items():
+        if not rows:
+            continue
+        keys = list(rows[0])
+        lines += [f"## {table}", "", "| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+        lines += ["| " + " | ".join(_fmt(r[k]) for k in keys) + " |" for r in rows]
+        lines.append("")
+    lines += ["## Parameters", "", "```json", json.dumps(config, indent=1), "```", ""]
+    report = out / "report.md"
+    report.write_text("\n".join(lines))
+    if progress:
+        print(f"{name}: done in {seconds:.1f} s; report {report}")
+    return report

@@ -1,0 +1,96 @@
+"""``shspec report``: gather experiment folders into one self-contained HTML page.
+
+Each folder written by :func:`shspec.experiments.run_experiment` holds ``meta.json``, ``config.json``,
+``report.md``, CSV tables and PNG figures.  The page shows, per experiment, its finding, figures (linked relative to
+the page, so the folder tree can be moved as a whole), tables, parameters and the versions that produced it.
+"""
+
+from __future__ import annotations
+
+import csv
+import html
+import json
+import os
+from pathlib import Path
+
+from .errors import InvalidArgumentError
+
+__all__ = ["build_report"]
+
+_STYLE = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
+h1{border-bottom:2px solid #444}h2{margin-top:2.2em;border-bottom:1px solid #bbb}
+table{border-collapse:collapse;font-size:0.85em;margin:0.8em 0}td,th{border:1px solid #ccc;padding:2px 6px;
+text-align:right}th{background:#f0f0f0}img{max-width:100%;border:1px solid #ddd;margin:0.5em 0}
+.finding{background:#f6f8fa;padding:0.8em 1em;border-left:4px solid #4a7}pre{background:#f6f8fa;padding:0.6em;
+font-size:0.8em;overflow-x:auto}.meta{color:#666;font-size:0.85em}"""
+
+
+def _finding(report_md: str) -> str:
+    part = report_md.split("## Finding", 1)[-1].strip()
+    return part.split("\n\n", 1)[0].strip()
+
+
+def _table(path: Path) -> str:
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    if not rows:
+        return ""
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in rows[0])
+    body = []
+    for row in rows[1:]:
+        cells = []
+        for c in row:
+            try:
+                c = f"{float(c):.4g}"
+            except ValueError:
+                pass
+            cells.append(f"<td>{html.escape(c)}</td>")
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+
+
+def build_report(folders, out) -> Path:
+    """Write an HTML page for the experiment ``folders`` to ``out`` (a .html path); returns its path.
+
+    Raises
+    ------
+    InvalidArgumentError
+        A folder is not an experiment run (no ``meta.json`` / ``report.md``).
+    """
+    out = Path(out)
+    if out.suffix.lower() != ".html":
+        raise InvalidArgumentError(f"the report must be an .html file, got {out}")
+    runs = []
+    for folder in folders:
+        folder = Path(folder)
+        candidates = [folder] if (folder / "meta.json").is_file() else sorted(
+            p.parent for p in folder.glob("*/meta.json"))
+        if not candidates:
+            raise InvalidArgumentError(f"{folder} is not an experiment folder (no meta.json in it or below it)")
+        runs.extend(candidates)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    sections, toc = [], []
+    for run in runs:
+        meta = json.loads((run / "meta.json").read_text())
+        config = json.loads((run / "config.json").read_text()) if (run / "config.json").is_file() else {}
+        finding = _finding((run / "report.md").read_text()) if (run / "report.md").is_file() else ""
+        anchor = html.escape(run.name)
+        toc.append(f'<li><a href="#{anchor}">{html.escape(meta["title"])}</a></li>')
+        parts = [f'<h2 id="{anchor}">{html.escape(meta["title"])}</h2>',
+                 f'<p class="meta">{html.escape(meta["reproduces"])}. Experiment <code>{html.escape(meta["experiment"])}'
+                 f'</code>{" (quick)" if meta.get("quick") else ""}, {meta["seconds"]:.1f} s, shspec '
+                 f'{html.escape(meta["shspec_version"])}, numpy {html.escape(meta["numpy"])}, Python '
+                 f'{html.escape(meta["python"])}, {html.escape(meta["finished"])}.</p>',
+                 f'<p class="finding">{html.escape(finding)}</p>']
+        for png in sorted(run.glob("*.png")):
+            rel = os.path.relpath(png, out.parent)
+            parts.append(f'<img src="{html.escape(rel)}" alt="{html.escape(png.stem)}">')
+        for table in sorted(run.glob("*.csv")):
+            parts.append(f"<h3>{html.escape(table.stem)}</h3>{_table(table)}")
+        parts.append(f"<h3>parameters</h3><pre>{html.escape(json.dumps(config, indent=1))}</pre>")
+        sections.append("\n".join(parts))
+    page = (f"<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>shspec experiments</title>"
+            f"<style>{_STYLE}</style></head><body><h1>shspec experiments</h1><ul>{''.join(toc)}</ul>\n"
+            + "\n".join(sections) + "\n</body></html>\n")
+    out.write_text(page)
+    return out

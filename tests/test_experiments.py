@@ -1,0 +1,90 @@
+"""Experiments run in --quick mode and write their folder; the HTML report is well formed and links only files."""
+
+import json
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+
+from shspec.cli import main
+from shspec.errors import InvalidArgumentError
+from shspec.experiments import EXPERIMENTS, run_experiment
+from shspec.report import build_report
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("experiments")
+    for name in sorted(EXPERIMENTS):
+        assert main(["experiment", name, "--quick", "--out", str(root / name)]) == 0
+    return root
+
+
+@pytest.mark.parametrize("name", sorted(EXPERIMENTS))
+def test_quick_run_writes_its_folder(runs, name):
+    folder = runs / name
+    for f in ("config.json", "meta.json", "report.md"):
+        assert (folder / f).is_file()
+    meta = json.loads((folder / "meta.json").read_text())
+    assert meta["quick"] and meta["experiment"] == name
+    report = (folder / "report.md").read_text()
+    finding = report.split("## Finding", 1)[1].strip().split("\n\n")[0]
+    assert len(finding) > 200 and any(ch.isdigit() for ch in finding)
+    assert list(folder.glob("*.png")) and list(folder.glob("*.csv"))
+
+
+def test_sh_convergence_finds_above_and_below(runs):
+    numbers = json.loads((runs / "sh-convergence" / "meta.json").read_text())["numbers"]
+    assert numbers["harmonic_from_above"] and numbers["pl_from_below"]
+    assert 0.7 < numbers["pl_order_in_vertices"] < 1.3  # O(h^2) = O(1/V)
+
+
+def test_identifiability_reaches_full_rank_modulo_rotations(runs):
+    numbers = json.loads((runs / "identifiability" / "meta.json").read_text())["numbers"]
+    ranks = list(numbers["ranks"].values())
+    assert ranks == sorted(ranks) and ranks[-1] == numbers["max_rank"]
+
+
+class _Checker(HTMLParser):
+    VOID = {"meta", "img", "br", "hr", "link", "input"}
+
+    def __init__(self):
+        super().__init__()
+        self.stack, self.links, self.errors = [], [], []
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        self.links += [attrs[k] for k in ("src", "href") if k in attrs]
+        if tag not in self.VOID:
+            self.stack.append(tag)
+
+    def handle_endtag(self, tag):
+        if not self.stack or self.stack.pop() != tag:
+            self.errors.append(tag)
+
+
+def test_report_is_well_formed_and_links_existing_files(runs, tmp_path):
+    page = build_report([runs], tmp_path / "sub" / "report.html")
+    checker = _Checker()
+    checker.feed(page.read_text())
+    assert not checker.errors and not checker.stack
+    files = [x for x in checker.links if not x.startswith("#")]
+    assert len(files) >= len(EXPERIMENTS)
+    for link in files:
+        assert (page.parent / link).resolve().is_file(), link
+
+
+def test_config_override_and_errors(tmp_path):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("numeig_values = [9, 16]\nrank_tol = 1e-6\n")
+    run_experiment("identifiability", tmp_path / "run", config_path=cfg, quick=True, progress=False)
+    assert json.loads((tmp_path / "run" / "config.json").read_text())["numeig_values"] == [9, 16]
+    assert (tmp_path / "run" / "config.toml").is_file()
+    bad = tmp_path / "bad.toml"
+    bad.write_text("no_such_key = 1\n")
+    with pytest.raises(InvalidArgumentError, match="unknown keys"):
+        run_experiment("identifiability", tmp_path / "x", config_path=bad, quick=True, progress=False)
+    with pytest.raises(InvalidArgumentError, match="no experiment"):
+        run_experiment("nope", tmp_path / "y")
+    with pytest.raises(InvalidArgumentError, match="not an experiment folder"):
+        build_report([tmp_path / "x"], tmp_path / "r.html")
