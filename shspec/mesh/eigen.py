@@ -22,13 +22,15 @@ The solver keeps iterating until the (k+1)-th eigenvalue has converged too, so t
 one belongs to a group that continues past k.  Eigenvalues within ``multiplet_rtol`` (relative) of each other count
 as one degenerate group.  :func:`eigenpairs` with ``whole_multiplets=True`` (the default of :func:`mesh_spectrum`)
 returns more than k pairs when the k-th eigenvalue's group continues past k, so that no member is dropped; with
-``whole_multiplets=False`` it returns exactly k, and the k-th may then be part of a group that is cut.  Clusters
+``whole_multiplets=False`` (what :class:`~shspec.mesh.model.MeshModel` needs: its interface returns exactly k) it
+returns exactly k and emits a ``RuntimeWarning`` when that cuts a group.  Clusters
 split by more than ``multiplet_rtol`` (e.g. the l(l+1) multiplets of an icosphere, split by ~1e-3 by the
 icosahedral symmetry) are not groups in this sense.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -119,12 +121,22 @@ def _finish(L, M, Y, k, rtol, whole):
     H = Y.T @ (L @ Y)
     G = Y.T @ (M @ Y)
     lam, S = sla.eigh(0.5 * (H + H.T), 0.5 * (G + G.T))
-    end = _group_end(lam, k, rtol) if whole else k
+    return _select(lam, Y @ S, k, rtol, whole)
+
+
+def _select(lam, V, k, rtol, whole):
+    """The first k pairs, completed to the end of the k-th one's degenerate group if ``whole``, else with a warning."""
+    end = _group_end(lam, k, rtol)
+    if end > k and not whole:
+        warnings.warn(f"eigenvalues {k - 1}..{end - 1} form one degenerate group (within {rtol:g}); only the first "
+                      f"{k} are returned, so the group is cut and its members' eigenvectors are arbitrary",
+                      RuntimeWarning, stacklevel=3)
+    end = end if whole else k
     if end == lam.size and whole and end > k:
         # The group fills every computed pair: the caller must ask for more, we cannot tell where it ends.
         raise ConvergenceError(f"eigenvalues {k - 1}..{end - 1} form one degenerate group reaching the end of the "
                                "computed pairs; ask for more eigenpairs")
-    return Spectrum(lam[:end].copy(), Y @ S[:, :end])
+    return Spectrum(lam[:end].copy(), V[:, :end].copy())
 
 
 def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multiplets: bool = False) -> Spectrum:
@@ -162,8 +174,7 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
     M = sp.csr_matrix(M, dtype=float)
     if n < opt.dense_below or k + 2 >= n // 2:
         lam, V = sla.eigh(L.toarray(), M.toarray())
-        end = _group_end(lam, k, opt.multiplet_rtol) if whole_multiplets else k
-        return Spectrum(lam[:end], V[:, :end])
+        return _select(lam, V, k, opt.multiplet_rtol, whole_multiplets)
     area = float(M.sum())
     sigma = opt.sigma if opt.sigma is not None else 0.45 * 4 * np.pi * k / area
     b = int(opt.block_size)
