@@ -5,7 +5,9 @@
    ARPACK shift-invert eigs).  Eigenvalues are compared too.
 2. cMCF to convergence on bunny.obj (8000 vertices) and spot.obj (2930): shspec's cmcf against lapy's
    tria_mean_curvature_flow run with the fewest iterations (from a fixed ladder) that reach the same roundness,
-   measured the same way (shspec.mesh.cmcf.roundness on the flowed, unprojected vertices).
+   measured the same way (shspec.mesh.cmcf.roundness on the flowed, unprojected vertices).  "The same" allows 2 %:
+   at the flow's discrete fixed point the roundness fluctuates by a few per cent from step to step, and lapy may
+   hover 0.1 % above shspec's value for hundreds of steps.
 
 Each timing is the best of ``--repeat`` runs (the machine may be shared).  Usage:
     python benchmarks/bench_mesh.py [--repeat N] [--quick]
@@ -39,6 +41,8 @@ from shspec.mesh.shapes import icosphere  # noqa: E402
 HERE = Path(__file__).resolve().parent
 MESHES = HERE.parents[1] / "shared" / "data" / "meshes"
 LAPY_LADDER = (5, 10, 15, 20, 25, 30, 35, 40, 50, 60, 80, 100, 150, 200)
+#: lapy's flow counts as equally round within this factor (see the module notes).
+SAME_ROUNDNESS = 1.02
 
 
 def _best(fn, repeat):
@@ -103,7 +107,7 @@ def bench_cmcf(name, repeat):
     for iters in LAPY_LADDER:
         flowed = tria_mean_curvature_flow(tria, max_iter=iters, stop_eps=0.0)
         r = roundness(flowed.v, vertex_areas(mesh.with_vertices(flowed.v)))
-        if r <= res.roundness:
+        if r <= SAME_ROUNDNESS * res.roundness:
             reached = (iters, r)
             break
     entry = {

@@ -10,7 +10,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from shspec.errors import ConvergenceError, InvalidArgumentError
-from shspec.mesh.cotan import cotan_stiffness, mass_matrix, vertex_areas
+from shspec.mesh.cotan import cotan_stiffness, mass_matrix
 from shspec.mesh.eigen import EigenOptions, eigenpairs, mesh_spectrum
 from shspec.mesh.io import load_mesh
 from shspec.mesh.shapes import blob, icosphere

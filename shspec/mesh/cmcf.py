@@ -1,16 +1,17 @@
 """Conformalized mean-curvature flow (Kazhdan, Solomon, Ben-Chen, "Can mean-curvature flow be modified to be
 non-singular?", SGP 2012) from a genus-0 mesh to the unit sphere.
 
-The input is first scaled to area 4π.  Each step solves (M_t + δ L₀) x_{t+1} = M_t x_t with the cotan stiffness
-L₀ frozen at the input and the lumped mass M_t of the current mesh, then moves the area-weighted centroid to the
-origin and rescales to area 4π.  Roundness is max_i | |x_i| / r̄ − 1 |, r̄ the area-weighted mean radius: the largest relative deviation
-of a vertex from the best sphere about the centroid.  The flow stops when roundness ≤ ``tol``, or when it has
-stagnated: a discrete fixed point (where L₀x = κ M_t x) is round only up to the discretization (measured:
-2e-3 for bunny.obj, 6e-3 for spot.obj, 3e-3 for blub.obj, 2e-2 to 6e-2 for their 600-vertex versions).  The vertices are then projected radially onto the unit sphere and, by default, Möbius-centred.
+The input is first scaled to area 4π. Each step solves (M_t + δ L₀) x_{t+1} = M_t x_t with the cotan stiffness L₀
+frozen at the input and the lumped mass M_t of the current mesh, then moves the area-weighted centroid to the origin
+and rescales to area 4π. Roundness is max_i | |x_i| / r̄ − 1 |, r̄ the area-weighted mean radius: the largest
+relative deviation of a vertex from the best sphere about the centroid. The flow stops when roundness ≤ ``tol``, or
+when it has stagnated: a discrete fixed point (where L₀x = κ M_t x) is round only up to the discretization
+(measured: 2e-3 for bunny.obj, 6e-3 for spot.obj, 3e-3 for blub.obj, 2e-2 to 6e-2 for their 600-vertex versions).
+The vertices are then projected radially onto the unit sphere and, by default, Möbius-centred.
 
 The linear systems are solved by conjugate gradients preconditioned with a sparse LU of an earlier step's matrix,
-refactored only when CG needs more than ``refactor_after`` iterations: the matrices of consecutive steps differ
-only in their diagonal, and less and less as the flow converges.
+refactored only when CG needs more than ``refactor_after`` iterations: the matrices of consecutive steps differ only
+in their diagonal, and less and less as the flow converges.
 """
 
 from __future__ import annotations
@@ -128,7 +129,10 @@ class CMCFResult:
 
 
 def roundness(vertices, weights) -> float:
-    """max_i | |x_i − x̄| / r̄ − 1 | for vertices (n, 3), x̄ and r̄ the ``weights``-weighted centroid and mean radius."""
+    """max_i | |x_i − x̄| / r̄ − 1 | for vertices (n, 3).
+
+    x̄ and r̄ are the centroid and the mean radius weighted by ``weights`` (n,), e.g. the vertex areas.
+    """
     x = np.asarray(vertices, dtype=float)
     w = np.asarray(weights, dtype=float)
     r = np.linalg.norm(x - (w @ x) / w.sum(), axis=1)
