@@ -59,14 +59,30 @@ def _family_count(l1, l2, c, lmax_factor):
 
 
 @nb.njit(cache=True, nogil=True)
-def _block_count(l1, l2, lmax_factor):
+def _block_families(l1, l2, lmax_factor):
+    """The families of the (l1, l2) block in storage order: arrays a, μ2, l3min, count (count may be 0).
+
+    The order (a, then b, then sum before difference) does not depend on La, so the same family has the same
+    rank in the blocks of two tables with different La.
+    """
     n = 0
     for a in range(l1 + 1):
         for b in range(a if l1 == l2 else 0, l2 + 1):
-            n += _family_count(l1, l2, a + b, lmax_factor)[1]
-            if a > 0 and b > 0:
-                n += _family_count(l1, l2, abs(a - b), lmax_factor)[1]
-    return n
+            n += 2 if a > 0 and b > 0 else 1
+    fa = np.empty(n, dtype=np.int64)
+    fmu2 = np.empty(n, dtype=np.int64)
+    fl3 = np.empty(n, dtype=np.int64)
+    fcnt = np.empty(n, dtype=np.int64)
+    f = 0
+    for a in range(l1 + 1):
+        for b in range(a if l1 == l2 else 0, l2 + 1):
+            for choice in range(2 if a > 0 and b > 0 else 1):
+                mu2 = b if choice == 0 else -b
+                fa[f] = a
+                fmu2[f] = mu2
+                fl3[f], fcnt[f] = _family_count(l1, l2, abs(a + mu2), lmax_factor)
+                f += 1
+    return fa, fmu2, fl3, fcnt
 
 
 @nb.njit(cache=True)
@@ -77,7 +93,7 @@ def _block_offsets(lmax, lmax_factor):
     for l1 in range(lmax + 1):
         for l2 in range(l1, min(lmax, l1 + lmax_factor) + 1):
             off[l1, l2] = pos
-            pos += _block_count(l1, l2, lmax_factor)
+            pos += _block_families(l1, l2, lmax_factor)[3].sum()
         off[l1, lmax + 1] = pos
     return off
 
@@ -97,21 +113,17 @@ def _fill_row(l1, lmax, lmax_factor, off, values, w0, w):
     for l2 in range(l1, min(lmax, l1 + lmax_factor) + 1):
         pos = off[l1, l2]
         jmin0 = family_into(l1, l2, 0, 0, w0)[0]
-        for a in range(l1 + 1):
-            for b in range(a if l1 == l2 else 0, l2 + 1):
-                for choice in range(2):
-                    if choice == 1 and (a == 0 or b == 0):
-                        continue
-                    mu2 = b if choice == 0 else -b
-                    l3min, cnt = _family_count(l1, l2, abs(a + mu2), lmax_factor)
-                    if cnt == 0:
-                        continue
-                    jmin = family_into(l1, l2, a, mu2, w)[0]
-                    for t in range(cnt):
-                        l3 = l3min + 2 * t
-                        pref = math.sqrt((2.0 * l1 + 1.0) * (2.0 * l2 + 1.0) * (2.0 * l3 + 1.0) * _INV_4PI)
-                        values[pos + t] = pref * w0[l3 - jmin0] * w[l3 - jmin]
-                    pos += cnt
+        fa, fmu2, fl3, fcnt = _block_families(l1, l2, lmax_factor)
+        for f in range(fa.size):
+            cnt = fcnt[f]
+            if cnt == 0:
+                continue
+            jmin = family_into(l1, l2, fa[f], fmu2[f], w)[0]
+            for t in range(cnt):
+                l3 = fl3[f] + 2 * t
+                pref = math.sqrt((2.0 * l1 + 1.0) * (2.0 * l2 + 1.0) * (2.0 * l3 + 1.0) * _INV_4PI)
+                values[pos + t] = pref * w0[l3 - jmin0] * w[l3 - jmin]
+            pos += cnt
 
 
 @nb.njit(cache=True, parallel=True)
@@ -173,42 +185,40 @@ def _plan_row(l1, lmax, lmax_factor, off, fill, ei, ej, em3, el3, ecnt, eoff, ef
     n = start
     for l2 in range(l1, min(lmax, l1 + lmax_factor) + 1):
         pos = off[l1, l2]
-        for a in range(l1 + 1):
-            for b in range(a if l1 == l2 else 0, l2 + 1):
-                for choice in range(2):
-                    if choice == 1 and (a == 0 or b == 0):
-                        continue
-                    mu2 = b if choice == 0 else -b
-                    mu3 = -(a + mu2)
-                    c = abs(mu3)
-                    l3min, cnt = _family_count(l1, l2, c, lmax_factor)
-                    if cnt == 0:
-                        continue
-                    for s1 in range(2 if a > 0 else 1):
-                        m1 = a if s1 == 0 else -a
-                        for s2 in range(2 if b > 0 else 1):
-                            m2 = b if s2 == 0 else -b
-                            for s3 in range(2 if c > 0 else 1):
-                                m3 = c if s3 == 0 else -c
-                                f = order_factor(m1, m2, m3, a, mu2, mu3)
-                                if abs(f) < 0.25:
-                                    continue
-                                i = l1 * l1 + l1 + m1
-                                j = l2 * l2 + l2 + m2
-                                if i > j:
-                                    if l1 == l2 and a == b:
-                                        continue  # its mirror (j, i) is in this same family
-                                    i, j = j, i
-                                if fill:
-                                    ei[n] = i
-                                    ej[n] = j
-                                    em3[n] = m3
-                                    el3[n] = l3min
-                                    ecnt[n] = cnt
-                                    eoff[n] = pos
-                                    efac[n] = f
-                                n += 1
-                    pos += cnt
+        fa, fmu2, fl3, fcnt = _block_families(l1, l2, lmax_factor)
+        for f in range(fa.size):
+            cnt = fcnt[f]
+            if cnt == 0:
+                continue
+            a = fa[f]
+            b = abs(fmu2[f])
+            mu3 = -(a + fmu2[f])
+            c = abs(mu3)
+            for s1 in range(2 if a > 0 else 1):
+                m1 = a if s1 == 0 else -a
+                for s2 in range(2 if b > 0 else 1):
+                    m2 = b if s2 == 0 else -b
+                    for s3 in range(2 if c > 0 else 1):
+                        m3 = c if s3 == 0 else -c
+                        fac = order_factor(m1, m2, m3, a, fmu2[f], mu3)
+                        if abs(fac) < 0.25:
+                            continue
+                        i = l1 * l1 + l1 + m1
+                        j = l2 * l2 + l2 + m2
+                        if i > j:
+                            if l1 == l2 and a == b:
+                                continue  # its mirror (j, i) is in this same family
+                            i, j = j, i
+                        if fill:
+                            ei[n] = i
+                            ej[n] = j
+                            em3[n] = m3
+                            el3[n] = fl3[f]
+                            ecnt[n] = cnt
+                            eoff[n] = pos
+                            efac[n] = fac
+                        n += 1
+            pos += cnt
     return n
 
 
@@ -322,18 +332,14 @@ def _restrict(rows, lmax, lmax_factor, off_small, big_factor, off_big, big_value
         for l2 in range(l1, min(lmax, l1 + lmax_factor) + 1):
             ps = off_small[l1, l2]
             pb = off_big[l1, l2]
-            for a in range(l1 + 1):
-                for b in range(a if l1 == l2 else 0, l2 + 1):
-                    for choice in range(2):
-                        if choice == 1 and (a == 0 or b == 0):
-                            continue
-                        c = a + b if choice == 0 else abs(a - b)
-                        ns = _family_count(l1, l2, c, lmax_factor)[1]
-                        nbig = _family_count(l1, l2, c, big_factor)[1]
-                        for t in range(ns):
-                            out[ps + t] = big_values[pb + t]
-                        ps += ns
-                        pb += nbig
+            n_small = _block_families(l1, l2, lmax_factor)[3]
+            n_big = _block_families(l1, l2, big_factor)[3]
+            for f in range(n_small.size):
+                # a family of the small table is the start of the same family of the big one
+                for t in range(n_small[f]):
+                    out[ps + t] = big_values[pb + t]
+                ps += n_small[f]
+                pb += n_big[f]
 
 
 # ---------------------------------------------------------------------------------------------------------------
