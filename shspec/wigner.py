@@ -322,6 +322,26 @@ def _dd_step(c1h, c1l, w1h, w1l, c2h, c2l, w2h, w2l, dh, dl):
 
 
 @nb.njit(cache=True, nogil=True)
+def _dd_step_up(hi, lo, p, bh, bl, cuh, cul, cdh, cdl):
+    # w[p+1] from w[p], w[p-1]; rescale everything so far when the growing values approach overflow
+    hi[p + 1], lo[p + 1] = _dd_step(bh[p], bl[p], hi[p], lo[p], cuh[p], cul[p], hi[p - 1], lo[p - 1], cdh[p], cdl[p])
+    if abs(hi[p + 1]) > _DD_HUGE:
+        for t in range(p + 2):
+            hi[t] *= _DD_TINY
+            lo[t] *= _DD_TINY
+
+
+@nb.njit(cache=True, nogil=True)
+def _dd_step_down(kh, kl, p, bh, bl, cuh, cul, cdh, cdl):
+    # w[p-1] from w[p], w[p+1]
+    kh[p - 1], kl[p - 1] = _dd_step(cdh[p], cdl[p], kh[p + 1], kl[p + 1], bh[p], bl[p], kh[p], kl[p], cuh[p], cul[p])
+    if abs(kh[p - 1]) > _DD_HUGE:
+        for t in range(p - 1, kh.size):
+            kh[t] *= _DD_TINY
+            kl[t] *= _DD_TINY
+
+
+@nb.njit(cache=True, nogil=True)
 def family_into_dd(j2, j3, m2, m3, hi, lo):
     """Double-double twin of :func:`family_into`: the family as ``hi[0:n] + lo[0:n]``; returns (jmin, n).
 
@@ -380,13 +400,8 @@ def family_into_dd(j2, j3, m2, m3, hi, lo):
     kh[n - 2], kl[n - 2] = _dd_div(-bh[n - 1], -bl[n - 1], cuh[n - 1], cul[n - 1])
     pb = n - 2
     while pb > 0 and (jmin == 0 or abs(kh[pb]) > abs(kh[pb + 1])):
-        kh[pb - 1], kl[pb - 1] = _dd_step(cdh[pb], cdl[pb], kh[pb + 1], kl[pb + 1], bh[pb], bl[pb],
-                                          kh[pb], kl[pb], cuh[pb], cul[pb])
+        _dd_step_down(kh, kl, pb, bh, bl, cuh, cul, cdh, cdl)
         pb -= 1
-        if abs(kh[pb]) > _DD_HUGE:
-            for t in range(pb, n):
-                kh[t] *= _DD_TINY
-                kl[t] *= _DD_TINY
     if jmin == 0:
         # j2 = j3 and m1 = 0: no lower forbidden region, the backward sweep ran to the end
         for t in range(n):
@@ -400,30 +415,15 @@ def family_into_dd(j2, j3, m2, m3, hi, lo):
     hi[1], lo[1] = _dd_div(-bh[0], -bl[0], cdh[0], cdl[0])
     pf = 1
     while pf < pb + 1 and abs(hi[pf]) > abs(hi[pf - 1]):
-        hi[pf + 1], lo[pf + 1] = _dd_step(bh[pf], bl[pf], hi[pf], lo[pf], cuh[pf], cul[pf],
-                                          hi[pf - 1], lo[pf - 1], cdh[pf], cdl[pf])
+        _dd_step_up(hi, lo, pf, bh, bl, cuh, cul, cdh, cdl)
         pf += 1
-        if abs(hi[pf]) > _DD_HUGE:
-            for t in range(pf + 1):
-                hi[t] *= _DD_TINY
-                lo[t] *= _DD_TINY
     mid = pb if pf > pb else (pf + pb) // 2
     while pf < mid + 1:
-        hi[pf + 1], lo[pf + 1] = _dd_step(bh[pf], bl[pf], hi[pf], lo[pf], cuh[pf], cul[pf],
-                                          hi[pf - 1], lo[pf - 1], cdh[pf], cdl[pf])
+        _dd_step_up(hi, lo, pf, bh, bl, cuh, cul, cdh, cdl)
         pf += 1
-        if abs(hi[pf]) > _DD_HUGE:
-            for t in range(pf + 1):
-                hi[t] *= _DD_TINY
-                lo[t] *= _DD_TINY
     while pb > mid:
-        kh[pb - 1], kl[pb - 1] = _dd_step(cdh[pb], cdl[pb], kh[pb + 1], kl[pb + 1], bh[pb], bl[pb],
-                                          kh[pb], kl[pb], cuh[pb], cul[pb])
+        _dd_step_down(kh, kl, pb, bh, bl, cuh, cul, cdh, cdl)
         pb -= 1
-        if abs(kh[pb]) > _DD_HUGE:
-            for t in range(pb, n):
-                kh[t] *= _DD_TINY
-                kl[t] *= _DD_TINY
     # bring both sweeps to O(1) at the meeting points by exact powers of two, so that the products below cannot
     # overflow (Veltkamp splitting overflows above ~2**996), then least-squares match on the two points
     ef = math.frexp(max(abs(hi[mid]), abs(hi[mid + 1])))[1]
