@@ -61,10 +61,11 @@ def run(cfg: dict, out, progress: bool) -> Finding:
     axes[0].legend(fontsize=7)
     grid = np.array([[r["fraction"][d] for d in degrees_] for r in results])
     im = axes[1].imshow(grid.T, origin="lower", aspect="auto", vmin=0, vmax=1, cmap="magma",
-                        extent=(-0.5, len(results) - 0.5, degrees_[0] - 0.5, degrees_[-1] + 0.5))
+                        extent=(-0.5, len(results) - 0.5, -0.5, len(degrees_) - 0.5))
     axes[1].set_xticks(range(len(results)), [str(r["k"]) for r in results])
+    axes[1].set_yticks(range(len(degrees_)), [str(d) for d in degrees_])
     axes[1].set_xlabel("number of eigenvalues K")
-    axes[1].set_ylabel("degree l of rho")
+    axes[1].set_ylabel("degree l of rho (l = 1 is the gauge a_1m = 0)")
     axes[1].set_title("determined fraction of each degree")
     fig.colorbar(im, ax=axes[1])
     save_figure(fig, out / "identifiability.png")
