@@ -65,7 +65,7 @@ def _machine():
         pass
     return {"cpu": cpu, "logical_cpus": os.cpu_count(), "threads": 1, "python": platform.python_version(),
             "numpy": np.__version__, "scipy": scipy.__version__, "lapy": lapy.__version__,
-            "platform": platform.platform()}
+            "platform": platform.platform(), "load_average_at_start": os.getloadavg()}
 
 
 def bench_spectrum(subdivisions, k, repeat):
@@ -148,6 +148,8 @@ def main(argv=None):
             entry = bench_cmcf(name, args.repeat)
             print(json.dumps(entry))
             result["cmcf"].append(entry)
+    # Other work on the machine inflates absolute times; the side-by-side ratios are affected less.
+    result["load_average_at_end"] = os.getloadavg()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=2) + "\n")
     print(f"wrote {args.out}")

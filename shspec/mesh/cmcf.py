@@ -63,7 +63,7 @@ class CMCFOptions:
 
     step: float = 1000.0
     tol: float = 1e-4
-    stall_iterations: int = 6
+    stall_iterations: int = 4
     stall_ratio: float = 0.98
     max_iter: int = 200
     center: bool = True
