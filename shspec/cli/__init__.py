@@ -12,7 +12,7 @@ import sys
 
 from ..errors import ShspecError
 
-_COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment"]
+_COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment", "shspec.cli.fit", "shspec.cli.embed"]
 
 
 def build_parser() -> argparse.ArgumentParser:

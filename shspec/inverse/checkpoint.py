@@ -1,0 +1,182 @@
+"""HDF5 checkpoints of a running fit, and the result file of a finished one.
+
+A checkpoint holds the finished starts and the running one (its stage, the parameters at the stage's start, the
+optimizer's state after its last completed iteration and the history), plus a fingerprint of the problem (options
+that change the computation, target spectrum, model).  Resuming checks the fingerprint and continues the running
+start from that state: the optimizers are deterministic, so the result is the one of an uninterrupted run.  Files
+are written to a temporary name and renamed, so a crash while writing never leaves a truncated checkpoint.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from ..errors import CheckpointError
+from .options import FitOptions, StartResult
+
+__all__ = ["fingerprint", "save_checkpoint", "load_checkpoint", "save_result", "load_result_summary",
+           "CHECKPOINT_FORMAT"]
+
+#: Format version of checkpoints and result files.
+CHECKPOINT_FORMAT = 1
+
+#: Options that do not change the computation, left out of the fingerprint.
+_IGNORED = ("checkpoint_every", "checkpoint_path", "progress", "starts")
+
+
+def options_dict(options: FitOptions) -> dict:
+    """The options as a JSON-ready dict (stages as dicts)."""
+    out = dataclasses.asdict(options)
+    out["schedule"] = [dataclasses.asdict(s) for s in options.schedule]
+    return out
+
+
+def fingerprint(options: FitOptions, target_eigenvalues, model_description: str) -> str:
+    """SHA-256 of what determines a fit's arithmetic: options (bar bookkeeping), target spectrum and model."""
+    opts = {k: v for k, v in options_dict(options).items() if k not in _IGNORED}
+    h = hashlib.sha256(json.dumps(opts, sort_keys=True).encode())
+    h.update(np.ascontiguousarray(target_eigenvalues, dtype=float).tobytes())
+    h.update(model_description.encode())
+    return h.hexdigest()
+
+
+def _write_start(group: h5py.Group, r: StartResult) -> None:
+    for name in ("params", "history", "eigenvalues"):
+        group.create_dataset(name, data=getattr(r, name))
+    for name in ("index", "energy", "relative_residual", "iterations", "seconds", "status", "success"):
+        group.attrs[name] = getattr(r, name)
+
+
+def _read_start(group: h5py.Group) -> StartResult:
+    a = group.attrs
+    return StartResult(index=int(a["index"]), params=group["params"][()], energy=float(a["energy"]),
+                       relative_residual=float(a["relative_residual"]), iterations=int(a["iterations"]),
+                       seconds=float(a["seconds"]), status=str(a["status"]), history=group["history"][()],
+                       eigenvalues=group["eigenvalues"][()], success=bool(a["success"]))
+
+
+def _atomic(path: Path, write) -> None:
+    tmp = path.with_name(path.name + f".tmp{os.getpid()}")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with h5py.File(tmp, "w") as f:
+            write(f)
+        os.replace(tmp, path)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise CheckpointError(f"cannot write {path}: {exc}") from exc
+
+
+def save_checkpoint(path, fp: str, finished: list, progress) -> None:
+    """Write a checkpoint: the fingerprint, the finished starts and the running start's progress (or None)."""
+    def write(f):
+        f.attrs["format"] = CHECKPOINT_FORMAT
+        f.attrs["fingerprint"] = fp
+        g = f.create_group("finished")
+        for r in finished:
+            _write_start(g.create_group(str(r.index)), r)
+        if progress is not None:
+            c = f.create_group("current")
+            c.attrs["index"], c.attrs["stage"], c.attrs["seconds"] = progress.index, progress.stage, progress.seconds
+            c.create_dataset("base", data=progress.base)
+            c.create_dataset("history", data=np.array(progress.history, dtype=float).reshape(-1, 3))
+            if progress.state is not None:
+                s = c.create_group("state")
+                for key, value in progress.state.items():
+                    s.create_dataset(key, data=np.asarray(value))
+
+    _atomic(Path(path), write)
+
+
+def load_checkpoint(path, fp: str):
+    """Read a checkpoint written by :func:`save_checkpoint`: (finished starts, running progress or None).
+
+    Raises
+    ------
+    CheckpointError
+        If the file is unreadable, of another format, or of another problem (fingerprint mismatch).
+    """
+    from .schedule import StartProgress
+
+    try:
+        with h5py.File(path, "r") as f:
+            if f.attrs.get("format") != CHECKPOINT_FORMAT:
+                raise CheckpointError(f"{path} is not a shspec fit checkpoint of format {CHECKPOINT_FORMAT}")
+            if f.attrs.get("fingerprint") != fp:
+                raise CheckpointError(f"{path} is the checkpoint of another fit (options, target or model differ)")
+            finished = sorted((_read_start(g) for g in f["finished"].values()), key=lambda r: r.index)
+            progress = None
+            if "current" in f:
+                c = f["current"]
+                state = None
+                if "state" in c:
+                    state = {k: v[()] for k, v in c["state"].items()}
+                progress = StartProgress(index=int(c.attrs["index"]), stage=int(c.attrs["stage"]),
+                                         base=c["base"][()], state=state,
+                                         history=[tuple(row) for row in c["history"][()]],
+                                         seconds=float(c.attrs["seconds"]))
+    except (OSError, KeyError) as exc:
+        raise CheckpointError(f"cannot read the checkpoint {path}: {exc}") from exc
+    return finished, progress
+
+
+def save_result(path, result) -> Path:
+    """Write a :class:`FitResult` to HDF5: options, versions, target, every start (params, history) and the
+    distinct solutions.  Returns the path.
+
+    Raises
+    ------
+    CheckpointError
+        If the file cannot be written.
+    """
+    import h5py as _h5py
+    import scipy
+
+    from .. import __version__
+
+    def write(f):
+        f.attrs["format"] = CHECKPOINT_FORMAT
+        f.attrs["kind"] = result.kind
+        f.attrs["options"] = json.dumps(options_dict(result.options))
+        f.attrs["versions"] = json.dumps({"shspec": __version__, "numpy": np.__version__, "scipy": scipy.__version__,
+                                          "h5py": _h5py.__version__})
+        f.attrs["seconds"] = result.seconds
+        f.attrs["interrupted"] = result.interrupted
+        if result.lmax is not None:
+            f.attrs["lmax"], f.attrs["lmax_factor"] = result.lmax, result.lmax_factor
+        t = f.create_group("target")
+        t.attrs["name"], t.attrs["source"] = result.target.name, result.target.source
+        t.create_dataset("eigenvalues", data=result.target.eigenvalues)
+        if result.target.area is not None:
+            t.attrs["area"] = result.target.area
+        if result.target.truth is not None:
+            t.create_dataset("truth", data=result.target.truth.coefficients)
+        if result.target.factors is not None:
+            t.create_dataset("factors", data=result.target.factors)
+        g = f.create_group("starts")
+        for r in result.starts:
+            _write_start(g.create_group(str(r.index)), r)
+        f.create_dataset("solutions", data=np.asarray(result.solutions, dtype=np.int64))
+        f.create_dataset("solution", data=result.best.params)
+
+    path = Path(path)
+    _atomic(path, write)
+    return path
+
+
+def load_result_summary(path) -> dict:
+    """The main fields of a result file: kind, options, solution (params), starts (list of StartResult)."""
+    try:
+        with h5py.File(path, "r") as f:
+            return {"kind": str(f.attrs["kind"]), "options": json.loads(f.attrs["options"]),
+                    "solution": f["solution"][()], "target": f["target/eigenvalues"][()],
+                    "starts": [_read_start(g) for g in f["starts"].values()]}
+    except (OSError, KeyError) as exc:
+        raise CheckpointError(f"cannot read the result file {path}: {exc}") from exc

@@ -1,0 +1,142 @@
+"""The inverse solver's entry point: several symmetry-broken starts through a schedule, every local solution kept.
+
+A round start never leaves the even subspace (NOTES.md: at an even ρ the gradient along odd degrees is exactly 0),
+so every start is random, with odd degrees.  Starts run one after the other (each already uses the machine's
+BLAS threads); each writes checkpoints if asked, and Ctrl-C ends the fit cleanly with the best state so far.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+from ..errors import InvalidArgumentError
+from ..model import SpectralModel
+from .align import power_spectrum
+from .checkpoint import fingerprint, load_checkpoint, save_checkpoint
+from .options import FitOptions, FitResult, StartResult
+from .schedule import FitProblem, StartProgress, run_start
+from .targets import Target
+
+__all__ = ["fit", "distinct_solutions"]
+
+
+def _invariant(kind: str, params: np.ndarray) -> np.ndarray:
+    """What identifies a solution up to the spectrum's symmetries: per-degree power (harmonic), factors (mesh)."""
+    return power_spectrum(params) if kind == "harmonic" else params
+
+
+def distinct_solutions(starts: list, kind: str, tol: float) -> list:
+    """Indices (into ``starts``) of the distinct local solutions, lowest energy first.
+
+    Two starts are the same solution when their energies agree to ``tol`` relative (or both are below 1e-20) and
+    their invariants (per-degree power for harmonic fits, the factors for meshes) agree to ``tol`` relative.
+    """
+    if not starts:
+        raise InvalidArgumentError("no starts to compare")
+    order = sorted(range(len(starts)), key=lambda i: starts[i].energy)
+    reps: list[int] = []
+    for i in order:
+        ei, pi = starts[i].energy, _invariant(kind, starts[i].params)
+        same = False
+        for j in reps:
+            ej, pj = starts[j].energy, _invariant(kind, starts[j].params)
+            close_e = max(ei, ej) < 1e-20 or abs(ei - ej) <= tol * max(ei, ej)
+            if close_e and np.linalg.norm(pi - pj) <= tol * np.linalg.norm(pj):
+                same = True
+                break
+        if not same:
+            reps.append(i)
+    return reps
+
+
+def _describe(model) -> str:
+    from ..galerkin import HarmonicModel
+
+    if isinstance(model, HarmonicModel):
+        return f"harmonic {model.lmax} {model.lmax_factor}"
+    return f"mesh {model.nparams} " + str(np.round(model.vertex_areas.sum(), 12))
+
+
+def fit(target: Target, model: SpectralModel, options: FitOptions | None = None, *, resume: bool = False,
+        ) -> FitResult:
+    """Fit the parameters of ``model`` to the spectrum of ``target`` from several random starts.
+
+    Parameters
+    ----------
+    target : Target
+        The target spectrum (k eigenvalues; stages may use fewer).
+    model : HarmonicModel or MeshModel
+        Harmonic: the parameters are the coefficients of ρ up to the model's La, in the gauge a_1m = 0, a_00 from
+        the area (see :class:`FitOptions`).  Mesh: per-vertex factors of the model's mesh.
+    options : FitOptions, optional
+    resume : bool
+        Continue from ``options.checkpoint_path`` if that file exists (it must be a checkpoint of the same fit).
+
+    Returns
+    -------
+    FitResult
+        Every start, the distinct local solutions (best first), and whether Ctrl-C stopped the fit.  On Ctrl-C the
+        running start is reported with status "interrupted" and its best state, and a checkpoint is written if a
+        path is set.
+
+    Raises
+    ------
+    InvalidArgumentError, BandLimitError
+        For inconsistent options, target and model.
+    CheckpointError
+        If a checkpoint cannot be written, or read when resuming.
+
+    Examples
+    --------
+    >>> from shspec import HarmonicModel
+    >>> from shspec.inverse import FitOptions, blob_factor, fit, harmonic_target
+    >>> target = harmonic_target(blob_factor(), lmax=12, numeig=40)
+    >>> result = fit(target, HarmonicModel(12, 6), FitOptions(starts=1))  # doctest: +SKIP
+    """
+    options = FitOptions() if options is None else options
+    problem = FitProblem(model, target, options)
+    fp = fingerprint(options, target.eigenvalues, _describe(model))
+    finished: list[StartResult] = []
+    current: StartProgress | None = None
+    if resume and options.checkpoint_path is not None:
+        from pathlib import Path
+
+        if Path(options.checkpoint_path).exists():
+            finished, current = load_checkpoint(options.checkpoint_path, fp)
+    t0 = time.perf_counter()
+
+    def checkpoint(progress):
+        save_checkpoint(options.checkpoint_path, fp, finished, progress)
+
+    interrupted = False
+    done = {r.index for r in finished}
+    for i in range(options.starts):
+        if i in done:
+            continue
+        if current is None or current.index != i:
+            current = StartProgress(i, 0, problem.initial(np.random.default_rng([options.seed, i])), None)
+        try:
+            finished.append(run_start(problem, current, checkpoint if options.checkpoint_path else None))
+        except KeyboardInterrupt:
+            interrupted = True
+            if options.checkpoint_path:
+                save_checkpoint(options.checkpoint_path, fp, finished, current)
+            if current.params is not None:
+                finished.append(current.result("interrupted", current.seconds, options.success_tol))
+            if options.progress:
+                print("\ninterrupted: the best state so far is kept", file=sys.stderr)
+            break
+        current = None
+        if options.checkpoint_path and options.checkpoint_every:
+            checkpoint(None)
+    if not finished:
+        raise KeyboardInterrupt
+    finished.sort(key=lambda r: r.index)
+    solutions = distinct_solutions(finished, problem.kind, options.distinct_tol)
+    lmax = getattr(model, "lmax", None) if problem.kind == "harmonic" else None
+    la = getattr(model, "lmax_factor", None) if problem.kind == "harmonic" else None
+    return FitResult(starts=finished, solutions=solutions, target=target, options=options, kind=problem.kind,
+                     lmax=lmax, lmax_factor=la, seconds=time.perf_counter() - t0, interrupted=interrupted)

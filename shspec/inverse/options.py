@@ -1,0 +1,274 @@
+"""Options and results of the inverse solver, as small frozen dataclasses.
+
+A fit runs a *schedule* of :class:`Stage` s from each of several starts.  Each stage fixes the factor's degree
+(harmonic fits) and the number of matched eigenvalues, and starts from where the previous stage stopped.  The
+results keep every start (:class:`StartResult`) and the distinct local solutions among them (:class:`FitResult`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InvalidArgumentError
+
+__all__ = ["OPTIMIZERS", "WEIGHTINGS", "AREA_MODES", "Stage", "FitOptions", "StartResult", "FitResult",
+           "parse_schedule"]
+
+#: Optimizers: Levenberg–Marquardt on the residuals, limited-memory BFGS, dense BFGS, gradient descent.
+OPTIMIZERS = ("lm", "lbfgs", "bfgs", "gd")
+#: Eigenvalue weights w_i: 1 ("absolute") or 1/λ*_i² ("relative", every eigenvalue counts by its relative error).
+WEIGHTINGS = ("relative", "absolute")
+#: How a_00 (the area) is treated in a harmonic fit: "auto" fixes it to the target's true area when known and
+#: fits it (started from the Weyl estimate) otherwise; "fixed" requires a known or estimated area; "fit" frees it.
+AREA_MODES = ("auto", "fixed", "fit")
+
+
+def _positive_int(value, name: str, *, allow_none: bool = False, minimum: int = 1):
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise InvalidArgumentError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _positive_float(value, name: str, *, zero_ok: bool = False) -> float:
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise InvalidArgumentError(f"{name} must be a number, got {value!r}") from None
+    if not np.isfinite(value) or value < 0 or (value == 0 and not zero_ok):
+        raise InvalidArgumentError(f"{name} must be finite and {'>=' if zero_ok else '>'} 0, got {value}")
+    return value
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage of a fit schedule.
+
+    Attributes
+    ----------
+    lmax_factor : int or None
+        Degree La of ρ fitted in this stage (harmonic fits only); None: the model's full La.  Coefficients of
+        higher degree stay 0; the ones this stage adds receive a small seeded random perturbation, because at an
+        even ρ the gradient along odd degrees is exactly 0 (the parity saddle, NOTES.md).
+    numeig : int or None
+        Number of eigenvalues matched (λ₀ = 0 included); None: all of the target's.
+    max_iter : int or None
+        Iterations of this stage; None: :attr:`FitOptions.max_iter`.
+    """
+
+    lmax_factor: int | None = None
+    numeig: int | None = None
+    max_iter: int | None = None
+
+    def __post_init__(self):
+        _positive_int(self.lmax_factor, "Stage.lmax_factor", allow_none=True, minimum=0)
+        _positive_int(self.numeig, "Stage.numeig", allow_none=True, minimum=2)
+        _positive_int(self.max_iter, "Stage.max_iter", allow_none=True)
+
+
+def parse_schedule(text: str) -> tuple[Stage, ...]:
+    """Stages from the command-line syntax ``"2,4,8,15"`` (degrees) or ``"2:40,4:80,8"`` (degree:numeig).
+
+    Raises
+    ------
+    InvalidArgumentError
+        If an entry is not ``L`` or ``L:K`` with integers.
+    """
+    if not isinstance(text, str) or not text.strip():
+        raise InvalidArgumentError(f"a schedule is a comma-separated list like '2,4,8,15', got {text!r}")
+    stages = []
+    for item in text.split(","):
+        parts = item.strip().split(":")
+        try:
+            nums = [int(p) for p in parts]
+        except ValueError:
+            raise InvalidArgumentError(f"schedule entry {item!r} is not 'L' or 'L:K' with integers") from None
+        if len(nums) not in (1, 2):
+            raise InvalidArgumentError(f"schedule entry {item!r} is not 'L' or 'L:K'")
+        stages.append(Stage(lmax_factor=nums[0], numeig=nums[1] if len(nums) == 2 else None))
+    return tuple(stages)
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """Options of :func:`~shspec.inverse.fit`.
+
+    Attributes
+    ----------
+    optimizer : {"lm", "lbfgs", "bfgs", "gd"}
+        Default "lm" (Levenberg–Marquardt): measured fastest by far near a zero-residual solution
+        (benchmarks/results/bench_inverse.json).
+    weights : {"relative", "absolute"}
+        Eigenvalue weights, see :data:`WEIGHTINGS`.
+    reg : float
+        Bi-Laplacian regularization weight R ≥ 0 (E += R‖Δρ‖²).
+    area : {"auto", "fixed", "fit"}
+        Treatment of a_00, see :data:`AREA_MODES` (harmonic fits).
+    schedule : tuple of Stage
+        Stages run in order from each start; empty means one stage at full degree with every eigenvalue.
+    starts : int
+        Number of random symmetry-broken starts.
+    seed : int
+        Seed of every random choice: start i uses ``numpy.random.default_rng([seed, i])``.
+    start_amplitude : float
+        RMS size of a random start relative to the mean of ρ (degree l ≥ 2 gets a share ∝ 1/l).
+    max_iter : int
+        Iterations per stage unless the stage says otherwise.
+    residual_tol : float
+        Stop a stage when max_i |λ_i − λ*_i| / λ*_i ≤ residual_tol (i ≥ 1).
+    step_tol : float
+        Stop when a step changes the parameters by less than step_tol relative.
+    energy_tol : float
+        Stop when an accepted step lowers the energy by less than energy_tol relative, 5 times in a row.
+    lbfgs_memory : int
+        Number of correction pairs kept by L-BFGS.
+    distinct_tol : float
+        Two converged starts are the same local solution when their energies agree to this relative tolerance
+        and their per-degree powers (rotation invariant) agree to it relative to the total power.
+    success_tol : float
+        A start succeeds when its final relative spectral residual is ≤ success_tol.
+    checkpoint_every : int
+        Write a checkpoint every N iterations (0: never); needs ``checkpoint_path``.
+    checkpoint_path : str or None
+        HDF5 file of the checkpoint.
+    progress : bool
+        Print one line per stage and a progress line per iteration on stderr.
+    """
+
+    optimizer: str = "lm"
+    weights: str = "relative"
+    reg: float = 0.0
+    area: str = "auto"
+    schedule: tuple = ()
+    starts: int = 4
+    seed: int = 0
+    start_amplitude: float = 0.2
+    max_iter: int = 200
+    residual_tol: float = 1e-13
+    step_tol: float = 1e-15
+    energy_tol: float = 1e-6
+    lbfgs_memory: int = 20
+    distinct_tol: float = 1e-4
+    success_tol: float = 1e-10
+    checkpoint_every: int = 0
+    checkpoint_path: str | None = None
+    progress: bool = False
+
+    def __post_init__(self):
+        if self.optimizer not in OPTIMIZERS:
+            raise InvalidArgumentError(f"optimizer must be one of {OPTIMIZERS}, got {self.optimizer!r}")
+        if self.weights not in WEIGHTINGS:
+            raise InvalidArgumentError(f"weights must be one of {WEIGHTINGS}, got {self.weights!r}")
+        if self.area not in AREA_MODES:
+            raise InvalidArgumentError(f"area must be one of {AREA_MODES}, got {self.area!r}")
+        if not isinstance(self.schedule, tuple) or not all(isinstance(s, Stage) for s in self.schedule):
+            raise InvalidArgumentError("schedule must be a tuple of Stage")
+        degrees = [s.lmax_factor for s in self.schedule if s.lmax_factor is not None]
+        if any(b < a for a, b in zip(degrees, degrees[1:])):
+            raise InvalidArgumentError(f"the stages' degrees must not decrease, got {degrees}")
+        _positive_float(self.reg, "reg", zero_ok=True)
+        _positive_int(self.starts, "starts")
+        _positive_int(self.seed, "seed", minimum=0)
+        _positive_float(self.start_amplitude, "start_amplitude")
+        _positive_int(self.max_iter, "max_iter")
+        for name in ("residual_tol", "step_tol", "energy_tol", "distinct_tol", "success_tol"):
+            _positive_float(getattr(self, name), name)
+        _positive_int(self.lbfgs_memory, "lbfgs_memory")
+        _positive_int(self.checkpoint_every, "checkpoint_every", minimum=0)
+        if self.checkpoint_every and not self.checkpoint_path:
+            raise InvalidArgumentError("checkpoint_every > 0 needs a checkpoint_path")
+
+
+@dataclass(frozen=True)
+class StartResult:
+    """The outcome of one start.
+
+    Attributes
+    ----------
+    index : int
+        Start number i (its random start is drawn from ``default_rng([seed, i])``).
+    params : (nparams,) array
+        Final parameters: harmonic coefficients a of ρ (flat, l*l + l + m) or per-vertex factors c.
+    energy : float
+        Final energy (with the regularizer).
+    relative_residual : float
+        max_i |λ_i − λ*_i| / λ*_i over the matched eigenvalues, i ≥ 1.
+    iterations : int
+        Iterations over all stages.
+    seconds : float
+        Wall time of this start.
+    status : str
+        Why the last stage stopped ("residual_tol", "step_tol", "energy_tol", "max_iter", "interrupted", ...).
+    history : (iterations + 1, 3) array
+        Columns: stage index, energy, relative residual, after each iteration (row 0: the start).
+    eigenvalues : (k,) array
+        Final matched eigenvalues.
+    success : bool
+        relative_residual ≤ :attr:`FitOptions.success_tol`.
+    """
+
+    index: int
+    params: np.ndarray
+    energy: float
+    relative_residual: float
+    iterations: int
+    seconds: float
+    status: str
+    history: np.ndarray = field(repr=False)
+    eigenvalues: np.ndarray = field(repr=False)
+    success: bool = False
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """Result of :func:`~shspec.inverse.fit`.
+
+    Attributes
+    ----------
+    starts : list of StartResult
+        Every start, in order.
+    solutions : list of int
+        Indices into ``starts`` of the distinct local solutions, best (lowest energy) first.
+    target : Target
+        What was fitted.
+    options : FitOptions
+    kind : {"harmonic", "mesh"}
+        Discretization of ``params``.
+    lmax, lmax_factor : int or None
+        Basis and factor band limits (harmonic fits).
+    seconds : float
+        Wall time of the whole fit.
+    interrupted : bool
+        The fit was stopped by Ctrl-C; ``starts`` holds what was done, the best state included.
+    """
+
+    starts: list
+    solutions: list
+    target: object
+    options: FitOptions
+    kind: str
+    lmax: int | None
+    lmax_factor: int | None
+    seconds: float
+    interrupted: bool = False
+
+    @property
+    def best(self) -> StartResult:
+        """The start of lowest energy."""
+        return self.starts[self.solutions[0]]
+
+    @property
+    def success_count(self) -> int:
+        """Number of starts with a final relative residual ≤ success_tol."""
+        return sum(s.success for s in self.starts)
+
+    def factor(self):
+        """The best ρ as a :class:`~shspec.factor.ConformalFactor` (harmonic fits)."""
+        from ..factor import ConformalFactor
+
+        if self.kind != "harmonic":
+            raise InvalidArgumentError("factor() is for harmonic fits; a mesh fit's params are per-vertex factors")
+        return ConformalFactor(self.best.params, name="fit")

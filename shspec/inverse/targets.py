@@ -1,0 +1,242 @@
+"""What a fit is aimed at: a target spectrum, and when known the truth it came from.
+
+Targets are built from a harmonic ρ (the built-in :func:`blob_factor` or any coefficients), from a mesh (its cMCF
+factors are the truth; the target is its PL spectrum or the harmonic spectrum of its expanded factors), or from a
+spectrum file.  :func:`parse_target` reads the command-line syntax ``blob | star:l,m,p | mesh:PATH | spectrum:FILE``.
+
+Area.  A spectrum fixes the area through Weyl's law; :func:`estimate_area` fits the counting function
+N(λ) ≈ Aλ/(4π) + c to the target, which is exact on the round sphere (N = (l+1)² at the top of each multiplet, l² + 1
+at its bottom: their mean is λ + 1 + ... ) and good to a few per cent on smooth surfaces.  When the truth is known
+its area is used instead.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InvalidArgumentError
+from ..factor import ConformalFactor
+from ..harmonics import flat_index, ncoeffs
+
+__all__ = ["BLOB_HARMONIC", "blob_factor", "Target", "harmonic_target", "mesh_target", "spectrum_target",
+           "read_spectrum", "estimate_area", "parse_target", "TARGET_SOURCES"]
+
+#: The built-in harmonic blob: ρ = Σ a_lm Y_lm with these coefficients, (l, m) -> a_lm, mean value 1 (area 4π).
+#: Degree 6, every degree but 1 present (a_1m = 0: it is Möbius-centred), orders of both signs so that it has no
+#: symmetry plane, amplitudes falling with the degree so that it is smooth; min ρ ≈ 0.55, max ρ ≈ 1.9.
+BLOB_HARMONIC = {
+    (0, 0): float(np.sqrt(4.0 * np.pi)),
+    (2, 0): 0.40,
+    (2, 2): 0.25,
+    (2, -1): -0.10,
+    (3, 1): -0.22,
+    (3, -2): 0.16,
+    (4, 3): 0.11,
+    (4, 0): 0.08,
+    (5, -4): 0.06,
+    (5, 2): -0.04,
+    (6, 5): 0.03,
+    (6, -1): 0.02,
+}
+
+#: Where a mesh target's spectrum comes from: the cotan spectrum of the mesh, or the Galerkin spectrum of its
+#: cMCF factors expanded in harmonics of degree La.
+TARGET_SOURCES = ("pl", "harmonic")
+
+
+def blob_factor(lmax: int = 6) -> ConformalFactor:
+    """The built-in blob ρ (:data:`BLOB_HARMONIC`), zero-padded to degree ``lmax`` ≥ 6."""
+    if isinstance(lmax, bool) or not isinstance(lmax, (int, np.integer)) or lmax < 6:
+        raise InvalidArgumentError(f"the blob has degree 6; lmax must be an integer >= 6, got {lmax!r}")
+    a = np.zeros(ncoeffs(int(lmax)))
+    for (l, m), value in BLOB_HARMONIC.items():
+        a[int(flat_index(l, m))] = value
+    return ConformalFactor(a, name="blob")
+
+
+@dataclass(frozen=True)
+class Target:
+    """A target spectrum and what is known about its source.
+
+    Attributes
+    ----------
+    name : str
+    eigenvalues : (k,) array
+        λ*₀ = 0 first, ascending (1/area).
+    area : float or None
+        The true area when known.
+    truth : ConformalFactor or None
+        The true harmonic ρ (for a mesh: its centred cMCF factors expanded to degree La).
+    mesh : TriangleMesh or None
+        The target surface (mesh targets).
+    sphere : TriangleMesh or None
+        Its cMCF sphere, vertex i over the mesh's vertex i (mesh targets).
+    factors : (n,) array or None
+        Its per-vertex cMCF factors (mesh targets): the PL truth.
+    source : str
+        "harmonic", "pl", or "file".
+    """
+
+    name: str
+    eigenvalues: np.ndarray
+    area: float | None = None
+    truth: ConformalFactor | None = None
+    mesh: object = field(default=None, repr=False)
+    sphere: object = field(default=None, repr=False)
+    factors: np.ndarray | None = field(default=None, repr=False)
+    source: str = "harmonic"
+
+    def __post_init__(self):
+        lam = np.asarray(self.eigenvalues, dtype=float)
+        if lam.ndim != 1 or lam.size < 2 or not np.all(np.isfinite(lam)):
+            raise InvalidArgumentError(f"a target needs a finite (k,) spectrum with k >= 2, got shape {lam.shape}")
+        if abs(lam[0]) > 1e-8 * lam[-1] or np.any(lam[1:] <= 0) or np.any(np.diff(lam) < -1e-12 * lam[-1]):
+            raise InvalidArgumentError("a target spectrum must start with λ₀ = 0 and ascend through positive values")
+        object.__setattr__(self, "eigenvalues", lam)
+
+    @property
+    def numeig(self) -> int:
+        return self.eigenvalues.size
+
+    def area_estimate(self) -> float:
+        """The true area if known, else Weyl's estimate from the spectrum (:func:`estimate_area`)."""
+        return self.area if self.area is not None else estimate_area(self.eigenvalues)
+
+
+def estimate_area(eigenvalues) -> float:
+    """Area from a spectrum (k,) by least squares on Weyl's law N(λ_n) ≈ Aλ_n/(4π) + c (module notes)."""
+    lam = np.asarray(eigenvalues, dtype=float)
+    if lam.ndim != 1 or lam.size < 4 or np.any(lam[1:] <= 0):
+        raise InvalidArgumentError("estimating the area needs at least 4 eigenvalues, λ₀ = 0 and the rest > 0")
+    n = np.arange(lam.size) + 0.5
+    design = np.stack([lam[1:] / (4 * np.pi), np.ones(lam.size - 1)], 1)
+    coef = np.linalg.lstsq(design, n[1:], rcond=None)[0]
+    if not coef[0] > 0:
+        raise InvalidArgumentError("the spectrum does not grow like Weyl's law; cannot estimate the area")
+    return float(coef[0])
+
+
+def harmonic_target(rho, lmax: int, numeig: int, *, name: str | None = None) -> Target:
+    """The first ``numeig`` Galerkin eigenvalues of a harmonic ρ at basis band limit ``lmax``."""
+    from ..galerkin import HarmonicModel
+
+    factor = rho if isinstance(rho, ConformalFactor) else ConformalFactor(rho)
+    model = HarmonicModel(lmax, factor.lmax)
+    lam = model.spectrum(factor, numeig).eigenvalues
+    return Target(name or factor.name, lam, area=factor.area, truth=factor, source="harmonic")
+
+
+def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str = "pl", name: str = "mesh",
+                ) -> Target:
+    """A target from a triangle mesh: cMCF gives the true factors; the spectrum is PL or harmonic.
+
+    Parameters
+    ----------
+    mesh : TriangleMesh
+        Closed genus-0 mesh.
+    lmax : int
+        Basis band limit Lb of the harmonic spectrum (source "harmonic").
+    numeig : int
+        Number of eigenvalues.
+    lmax_factor : int
+        Degree La of the harmonic expansion of the cMCF factors (the harmonic truth).
+    source : {"pl", "harmonic"}
+        See :data:`TARGET_SOURCES`.
+    """
+    from ..galerkin import HarmonicModel
+    from ..mesh.bridge import fit_harmonic
+    from ..mesh.cmcf import cmcf
+    from ..mesh.eigen import mesh_spectrum
+    from ..mesh.triangle_mesh import TriangleMesh
+
+    if not isinstance(mesh, TriangleMesh):
+        raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
+    if source not in TARGET_SOURCES:
+        raise InvalidArgumentError(f"source must be one of {TARGET_SOURCES}, got {source!r}")
+    flow = cmcf(mesh)
+    la = min(int(lmax_factor), int(np.sqrt(mesh.nvertices / 2)) - 1)
+    truth = ConformalFactor(fit_harmonic(flow.sphere, flow.factors, la).coefficients, name=f"{name} (cMCF)")
+    if source == "pl":
+        lam = mesh_spectrum(mesh, numeig, whole_multiplets=False).eigenvalues
+        lam[0] = 0.0  # the solver's λ₀ is 0 to rounding; the target's must be exactly 0
+    else:
+        lam = HarmonicModel(lmax, la).spectrum(truth, numeig).eigenvalues
+    return Target(name, lam, area=mesh.area(), truth=truth, mesh=mesh, sphere=flow.sphere,
+                  factors=flow.factors, source=source)
+
+
+def read_spectrum(path) -> np.ndarray:
+    """Eigenvalues from a file: plain text (one per line, '#' comments), .npy, or .json (a list or
+    {"eigenvalues": [...]}) ; λ₀ = 0 is prepended when missing.
+
+    Raises
+    ------
+    InvalidArgumentError
+        If the file cannot be read or does not hold an ascending positive spectrum.
+    """
+    path = Path(path)
+    try:
+        if path.suffix == ".npy":
+            lam = np.load(path, allow_pickle=False)
+        elif path.suffix == ".json":
+            data = json.loads(path.read_text())
+            lam = data["eigenvalues"] if isinstance(data, dict) else data
+        else:
+            lam = np.loadtxt(path, ndmin=1)
+        lam = np.asarray(lam, dtype=float).ravel()
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise InvalidArgumentError(f"cannot read a spectrum from {path}: {exc}") from None
+    if lam.size == 0 or not np.all(np.isfinite(lam)):
+        raise InvalidArgumentError(f"{path} holds no finite eigenvalues")
+    if lam[0] > 1e-8 * lam[-1]:
+        lam = np.concatenate([[0.0], lam])
+    lam[0] = 0.0
+    return lam
+
+
+def spectrum_target(path) -> Target:
+    """A target read from a spectrum file (:func:`read_spectrum`); area and truth unknown."""
+    return Target(Path(path).stem, read_spectrum(path), source="file")
+
+
+def parse_target(text: str, *, lmax: int, numeig: int, lmax_factor: int, source: str = "pl",
+                 subdivisions: int = 3) -> Target:
+    """A target from the command-line syntax.
+
+    Parameters
+    ----------
+    text : str
+        ``blob`` (the harmonic :func:`blob_factor`), ``star:l,m,p`` (the study's star surface r = 1 + p|Y_l^m| on
+        an icosphere), ``mesh:PATH`` (a mesh file) or ``spectrum:FILE``.
+    lmax, numeig, lmax_factor : int
+        Basis band limit, number of eigenvalues, factor degree.
+    source : {"pl", "harmonic"}
+        Spectrum of mesh targets (star, mesh).
+    subdivisions : int
+        Icosphere subdivisions of star surfaces.
+    """
+    from ..mesh.io import load_mesh
+    from ..mesh.shapes import star_surface
+
+    if not isinstance(text, str):
+        raise InvalidArgumentError(f"a target is a string, got {text!r}")
+    kind, _, arg = text.partition(":")
+    if kind == "blob" and not arg:
+        return harmonic_target(blob_factor(max(6, lmax_factor)).truncated(6), lmax, numeig, name="blob")
+    if kind == "star":
+        try:
+            l, m, p = arg.split(",")
+            l, m, p = int(l), int(m), float(p)
+        except ValueError:
+            raise InvalidArgumentError(f"a star target is 'star:l,m,p', got {text!r}") from None
+        return mesh_target(star_surface(l, m, p, subdivisions), lmax, numeig, lmax_factor, source=source,
+                           name=f"star({l},{m},{p:g})")
+    if kind == "mesh" and arg:
+        return mesh_target(load_mesh(arg), lmax, numeig, lmax_factor, source=source, name=Path(arg).stem)
+    if kind == "spectrum" and arg:
+        return spectrum_target(arg)
+    raise InvalidArgumentError(f"unknown target {text!r}: use blob, star:l,m,p, mesh:PATH or spectrum:FILE")
