@@ -1,0 +1,72 @@
+"""Re-embedding subcommands: ``shspec embed`` and ``shspec validate``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..embed.embed import EmbedOptions, embed
+from ..errors import InvalidArgumentError
+from ..mesh.io import load_mesh, save_mesh
+
+
+def register(subparsers) -> None:
+    """Add ``embed`` and ``validate`` to the shspec command line."""
+    p = subparsers.add_parser("embed", help="re-embed per-vertex conformal factors of a sphere mesh in R^3",
+                              description="Find vertex positions whose edge lengths are l_ij (c_i c_j)^(1/4) on a "
+                              "unit-sphere mesh (e.g. sphere.obj and factors.txt written by 'shspec cmcf'); write "
+                              "the mesh and a JSON summary (edge-length error, folds, self-intersections).")
+    p.add_argument("sphere", type=Path, help="unit-sphere mesh file")
+    p.add_argument("factors", type=Path, help="text file with one conformal factor per vertex")
+    p.add_argument("--out", type=Path, required=True, help="output mesh file (.obj, .ply, .off, .stl)")
+    p.add_argument("--steps", type=int, default=None, help="continuation steps (default: from the factor range)")
+    p.add_argument("--pressure", type=float, default=EmbedOptions.pressure, help="pressure prior (bumps outwards)")
+    p.add_argument("--smoothing", type=float, default=EmbedOptions.smoothing, help="bi-Laplacian factor filter")
+    p.set_defaults(func=_embed)
+
+    q = subparsers.add_parser("validate", help="end-to-end validation of a target mesh (spectra, factors, "
+                              "re-embedding) with a Markdown report",
+                              description="cMCF of the target, spectra of target / cMCF factors (PL, harmonic) / "
+                              "fitted factors / re-embedded meshes, factor errors, Hausdorff and Chamfer distances; "
+                              "writes summary.json, report.md and PNG figures to DIR.")
+    q.add_argument("--target", required=True, metavar="mesh:PATH", help="target, as mesh:PATH")
+    q.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
+    q.add_argument("--numeig", type=int, default=30, help="eigenvalues compared (default 30)")
+    q.add_argument("--lmax", type=int, default=16, help="harmonic basis degree Lb (default 16)")
+    q.add_argument("--lmax-factor", type=int, default=8, help="factor degree La (default 8)")
+    q.add_argument("--no-fit", action="store_true", help="skip the inverse fit")
+    q.add_argument("--up", choices=("x", "y", "z"), default="z", help="vertical axis of the renderings")
+    q.set_defaults(func=_validate)
+
+
+def _embed(args) -> int:
+    sphere = load_mesh(args.sphere, validate=False)
+    try:
+        factors = np.loadtxt(args.factors, ndmin=1)
+    except (OSError, ValueError) as exc:
+        raise InvalidArgumentError(f"cannot read factors from {args.factors}: {exc}") from None
+    res = embed(sphere, factors, EmbedOptions(steps=args.steps, pressure=args.pressure, smoothing=args.smoothing))
+    save_mesh(res.mesh, args.out)
+    print(json.dumps({"out": str(args.out), "edge_length_error": res.edge_error_rms,
+                      "edge_length_error_max": res.edge_error_max, "folded_faces": res.folded_faces,
+                      "self_intersections": res.self_intersections, "steps": res.steps,
+                      "iterations": res.iterations, "success": res.success, "seconds": res.seconds}))
+    return 0 if res.success else 1
+
+
+def _validate(args) -> int:
+    from ..pipeline.validation import ValidationOptions, validate_target, write_report
+
+    kind, _, path = args.target.partition(":")
+    if kind != "mesh" or not path:
+        raise InvalidArgumentError(f"--target must be mesh:PATH, got {args.target!r}")
+    mesh = load_mesh(Path(path))
+    opt = ValidationOptions(numeig=args.numeig, lmax=args.lmax, lmax_factor=args.lmax_factor, fit=not args.no_fit)
+    result = validate_target(mesh, opt, name=Path(path).stem, log=print)
+    report = write_report(result, args.out, up=args.up)
+    s = result.summary
+    print(f"hausdorff_relative {s['hausdorff_relative']:.4g}  edge_length_error {s['edge_length_error']:.4g}  "
+          f"report {report}")
+    return 0

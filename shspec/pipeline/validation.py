@@ -1,0 +1,405 @@
+"""``validate_target``: everything the study's Section 2.4 asks to compare, for one target mesh.
+
+Steps (each reported with a status, never faked):
+
+1. cMCF of the target (:func:`~shspec.mesh.cmcf.cmcf`): the sphere mesh and the per-vertex factors c.
+2. Spectra, first k eigenvalues: the target's PL spectrum; the sphere carrying c, PL (:class:`MeshModel`) and
+   harmonic (c expanded to degree La, :class:`HarmonicModel`; skipped when that expansion is not positive, as for
+   the bunny, whose factors span seven decades); the fitted factors (step 4); the re-embedded meshes.
+3. Re-embedding of c (:func:`~shspec.embed.embed`), its edge-length error, folds, self-intersections, bump/dip
+   ambiguity, Hausdorff/Chamfer distance to the target after rigid alignment, and the factor error of the
+   re-embedded mesh: its own cMCF factors against the target's, as rotation-invariant per-degree power (and after
+   Möbius + O(3) alignment when :func:`shspec.inverse.align` is available).
+4. The inverse fit (:func:`shspec.inverse.fit`, harmonic model) of the target's PL spectrum, its factor error after
+   alignment, and the re-embedding of the fitted factors sampled on the cMCF sphere.  Runs only if the inverse
+   package exports ``fit``, ``FitOptions``, ``mesh_target`` and ``align``; otherwise it is marked "skipped" with the
+   reason.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..embed.ambiguity import AmbiguityReport, detect_ambiguity
+from ..embed.distances import SurfaceDistance, surface_distance
+from ..embed.embed import EmbedOptions, EmbedResult, embed
+from ..errors import InvalidArgumentError, NotPositiveError, ShspecError
+from ..mesh.bridge import fit_harmonic, sample_harmonic
+from ..mesh.cmcf import CMCFResult, cmcf
+from ..mesh.eigen import mesh_spectrum
+from ..mesh.model import MeshModel
+from ..mesh.triangle_mesh import TriangleMesh
+
+__all__ = ["ValidationOptions", "ValidationResult", "validate_target", "write_report", "inverse_api"]
+
+
+@dataclass(frozen=True)
+class ValidationOptions:
+    """Options of :func:`validate_target`.
+
+    Attributes
+    ----------
+    numeig : int
+        Eigenvalues k compared (λ₀ = 0 included).
+    lmax, lmax_factor : int
+        Harmonic basis degree Lb and factor degree La.
+    fit : bool
+        Run the inverse fit when the inverse package is available.
+    fit_starts : int
+        Random starts of the fit.
+    ambiguity : bool
+        Run the bump/dip test on the re-embedding.
+    embed : EmbedOptions
+        Options of every re-embedding.
+    """
+
+    numeig: int = 30
+    lmax: int = 16
+    lmax_factor: int = 8
+    fit: bool = True
+    fit_starts: int = 1
+    ambiguity: bool = True
+    embed: EmbedOptions = field(default_factory=EmbedOptions)
+
+    def __post_init__(self):
+        for name in ("numeig", "lmax", "lmax_factor", "fit_starts"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise InvalidArgumentError(f"ValidationOptions.{name} must be a positive integer, got {value!r}")
+        if self.numeig < 2:
+            raise InvalidArgumentError("ValidationOptions.numeig must be >= 2")
+        if not isinstance(self.embed, EmbedOptions):
+            raise InvalidArgumentError("ValidationOptions.embed must be EmbedOptions")
+
+
+@dataclass(frozen=True)
+class ValidationResult:
+    """Result of :func:`validate_target`.
+
+    Attributes
+    ----------
+    name : str
+    target : TriangleMesh
+    flow : CMCFResult
+    spectra : dict of str to (k,) array
+        Eigenvalues per source (only the sources that ran).
+    status : dict of str to str
+        "ok", or "skipped: reason", per step.
+    embedding : EmbedResult
+        Re-embedding of the cMCF factors.
+    distance : SurfaceDistance
+    ambiguity : AmbiguityReport or None
+    fit_embedding : EmbedResult or None
+        Re-embedding of the fitted factors.
+    fit_distance : SurfaceDistance or None
+    summary : dict
+        JSON-ready numbers (see :func:`write_report`).
+    """
+
+    name: str
+    target: TriangleMesh = field(repr=False)
+    flow: CMCFResult = field(repr=False)
+    spectra: dict = field(repr=False)
+    status: dict
+    embedding: EmbedResult = field(repr=False)
+    distance: SurfaceDistance
+    ambiguity: AmbiguityReport | None = field(repr=False)
+    fit_embedding: EmbedResult | None = field(repr=False)
+    fit_distance: SurfaceDistance | None
+    summary: dict = field(repr=False)
+
+
+def inverse_api():
+    """The inverse solver's functions (fit, FitOptions, mesh_target, align) as a tuple, or a string saying why not."""
+    try:
+        inv = importlib.import_module("shspec.inverse")
+    except ImportError as exc:
+        return f"shspec.inverse cannot be imported ({exc})"
+    missing = [n for n in ("fit", "FitOptions", "mesh_target", "align") if not hasattr(inv, n)]
+    if missing:
+        return f"shspec.inverse does not export {', '.join(missing)} (yet)"
+    return inv.fit, inv.FitOptions, inv.mesh_target, inv.align
+
+
+def _power(coeffs: np.ndarray) -> np.ndarray:
+    """Per-degree power Σ_m a_lm² (rotation and reflection invariant), (L+1,)."""
+    lmax = int(round(np.sqrt(coeffs.size))) - 1
+    return np.array([np.sum(coeffs[l * l:(l + 1) ** 2] ** 2) for l in range(lmax + 1)])
+
+
+def _factor_comparison(sphere_a, c_a, sphere_b, c_b, la, align_fn):
+    """Relative per-degree power error (and aligned L2 error if ``align_fn``) of two per-vertex factor fields."""
+    a = fit_harmonic(sphere_a, c_a, la).coefficients
+    b = fit_harmonic(sphere_b, c_b, la).coefficients
+    pa, pb = _power(a), _power(b)
+    out = {"power_error": float(np.linalg.norm(pa - pb) / np.linalg.norm(pb))}
+    if align_fn is not None:
+        out["aligned_l2_error"] = float(align_fn(a, b).relative_error)
+    return out
+
+
+def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None, *, name: str = "target",
+                    log=None) -> ValidationResult:
+    """Run the validation pipeline on a target mesh (see the module notes).
+
+    Parameters
+    ----------
+    mesh : TriangleMesh
+        Closed genus-0 target, n vertices.
+    options : ValidationOptions, optional
+    name : str
+        Name used in the report.
+    log : callable, optional
+        Called with one progress string per step (e.g. ``print``).
+
+    Returns
+    -------
+    ValidationResult
+
+    Raises
+    ------
+    MeshError
+        If the target is not a closed manifold genus-0 mesh.
+    """
+    opt = options if options is not None else ValidationOptions()
+    if not isinstance(opt, ValidationOptions):
+        raise InvalidArgumentError(f"options must be ValidationOptions, got {type(opt).__name__}")
+    if not isinstance(mesh, TriangleMesh):
+        raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
+    say = log if log is not None else (lambda _msg: None)
+    start = time.perf_counter()
+    k = min(opt.numeig, mesh.nvertices - 1)
+    la = min(opt.lmax_factor, int(np.sqrt(mesh.nvertices / 2)) - 1)
+    status, spectra, times = {}, {}, {}
+
+    t = time.perf_counter()
+    flow = cmcf(mesh)
+    times["cmcf"] = time.perf_counter() - t
+    status["cmcf"] = "ok" if flow.success else "ok (not converged)"
+    say(f"cMCF: {flow.iterations} steps, roundness {flow.roundness:.2e}, {times['cmcf']:.1f} s")
+
+    spectra["target_pl"] = mesh_spectrum(mesh, k, whole_multiplets=False).eigenvalues
+    spectra["cmcf_pl"] = MeshModel(flow.sphere).spectrum(flow.factors, k).eigenvalues
+    expansion = fit_harmonic(flow.sphere, flow.factors, la)
+    try:
+        from ..galerkin import HarmonicModel
+
+        spectra["cmcf_harmonic"] = HarmonicModel(opt.lmax, la).spectrum(expansion.coefficients, k).eigenvalues
+        status["cmcf_harmonic"] = "ok"
+    except NotPositiveError as exc:
+        status["cmcf_harmonic"] = f"skipped: the degree-{la} expansion of the cMCF factors is not a metric ({exc})"
+    say(f"spectra: target, cMCF PL, cMCF harmonic ({status['cmcf_harmonic'][:7]})")
+
+    emb = embed(flow.sphere, flow.factors, opt.embed)
+    times["embed"] = emb.seconds
+    status["embed"] = "ok" if emb.success else "ok (not successful: see flags)"
+    say(f"re-embedding: rms edge error {emb.edge_error_rms:.3g}, {emb.seconds:.1f} s")
+    dist = surface_distance(emb.mesh, mesh)
+    spectra["embedded_pl"] = mesh_spectrum(emb.mesh, k, whole_multiplets=False).eigenvalues
+    amb = detect_ambiguity(flow.sphere, emb, embed_options=opt.embed) if opt.ambiguity else None
+    status["ambiguity"] = "ok" if opt.ambiguity else "skipped: disabled"
+
+    api = inverse_api()
+    align_fn = api[3] if isinstance(api, tuple) else None
+    t = time.perf_counter()
+    re_flow = cmcf(emb.mesh)
+    factor_errors = {"embedded_vs_cmcf": _factor_comparison(re_flow.sphere, re_flow.factors, flow.sphere,
+                                                            flow.factors, la, align_fn)}
+    times["factor_errors"] = time.perf_counter() - t
+
+    fit_emb = fit_dist = None
+    fit_info = {}
+    if not opt.fit:
+        status["fit"] = "skipped: disabled"
+    elif not isinstance(api, tuple):
+        status["fit"] = f"skipped: {api}"
+    else:
+        fit_fn, FitOptions, mesh_target, align = api
+        try:
+            from ..galerkin import HarmonicModel
+
+            t = time.perf_counter()
+            target = mesh_target(mesh, opt.lmax, k, la, source="pl", name=name)
+            result = fit_fn(target, HarmonicModel(opt.lmax, la), FitOptions(starts=opt.fit_starts))
+            times["fit"] = time.perf_counter() - t
+            coeffs = np.asarray(result.best.params, dtype=float)
+            al = align(coeffs, expansion.coefficients)
+            spectra["fit_harmonic"] = HarmonicModel(opt.lmax, la).spectrum(coeffs, k).eigenvalues
+            fit_info = {"aligned_l2_error": float(al.relative_error), "power_error": float(al.power_error),
+                        "seconds": times["fit"]}
+            c_fit = sample_harmonic(al.aligned, flow.sphere.vertices)
+            if np.any(c_fit <= 0):
+                status["fit"] = "ok; embedding skipped: the fitted factor is not positive at every vertex"
+            else:
+                fit_emb = embed(flow.sphere, c_fit, opt.embed)
+                fit_dist = surface_distance(fit_emb.mesh, mesh)
+                spectra["fit_embedded_pl"] = mesh_spectrum(fit_emb.mesh, k, whole_multiplets=False).eigenvalues
+                status["fit"] = "ok"
+        except ShspecError as exc:
+            status["fit"] = f"failed: {exc}"
+    say(f"fit: {status['fit']}")
+
+    lam0 = spectra["target_pl"]
+    summary = {
+        "name": name, "nvertices": mesh.nvertices, "nfaces": mesh.nfaces, "numeig": k, "lmax": opt.lmax,
+        "lmax_factor": la,
+        "hausdorff_relative": dist.hausdorff_relative, "chamfer_relative": dist.chamfer_relative,
+        "edge_length_error": emb.edge_error_rms, "edge_length_error_max": emb.edge_error_max,
+        "folded_faces": emb.folded_faces, "self_intersections": emb.self_intersections,
+        "embed_success": emb.success, "embed_steps": emb.steps, "embed_iterations": emb.iterations,
+        "embed_seconds": emb.seconds, "reflected": dist.reflected,
+        "cmcf": {"iterations": flow.iterations, "roundness": flow.roundness, "success": flow.success,
+                 "factor_min": float(flow.factors.min()), "factor_max": float(flow.factors.max()),
+                 "harmonic_residual": expansion.residual},
+        "spectral_error": {key: float(np.max(np.abs(v[1:] / lam0[1:] - 1))) for key, v in spectra.items()
+                           if key != "target_pl"},
+        "spectra": {key: v.tolist() for key, v in spectra.items()},
+        "factor_errors": factor_errors, "fit": fit_info, "status": status,
+        "ambiguity": None if amb is None else {
+            "candidates": amb.candidates, "ambiguous": amb.ambiguous,
+            "caps": [{"kind": c.kind, "area_fraction": c.area_fraction, "rms_original": c.rms_original,
+                      "rms_mirrored": c.rms_mirrored, "ambiguous": c.ambiguous} for c in amb.caps]},
+        "fit_embedding": None if fit_emb is None else {
+            "edge_length_error": fit_emb.edge_error_rms, "hausdorff_relative": fit_dist.hausdorff_relative,
+            "chamfer_relative": fit_dist.chamfer_relative, "success": fit_emb.success},
+        "embed_options": asdict(opt.embed), "seconds": {**times, "total": time.perf_counter() - start},
+    }
+    return ValidationResult(name=name, target=mesh, flow=flow, spectra=spectra, status=status, embedding=emb,
+                            distance=dist, ambiguity=amb, fit_embedding=fit_emb, fit_distance=fit_dist,
+                            summary=summary)
+
+
+def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int = 90) -> Path:
+    """Write ``summary.json``, ``report.md`` and the PNG figures of a validation to ``out_dir``.
+
+    Parameters
+    ----------
+    result : ValidationResult
+    out_dir : path
+        Created if needed.
+    up : {"x", "y", "z"}
+        Vertical axis of the mesh renderings.
+    dpi : int
+        Resolution of the PNGs.
+
+    Returns
+    -------
+    Path
+        The path of ``report.md``.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..embed.render import render_mesh
+    from ..mesh.plot import plot_hammer
+
+    if not isinstance(result, ValidationResult):
+        raise InvalidArgumentError(f"expected a ValidationResult, got {type(result).__name__}")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    s = result.summary
+    (out / "summary.json").write_text(json.dumps(s, indent=1))
+
+    aligned = result.target.with_vertices(result.embedding.mesh.vertices @ result.distance.transform[:3, :3].T
+                                          + result.distance.transform[:3, 3])
+    meshes = [(result.target, "target"), (aligned, "re-embedded cMCF factors")]
+    if result.fit_embedding is not None:
+        T = result.fit_distance.transform
+        meshes.append((result.target.with_vertices(result.fit_embedding.mesh.vertices @ T[:3, :3].T + T[:3, 3]),
+                       "re-embedded fitted factors"))
+    fig = plt.figure(figsize=(4.5 * len(meshes), 4.5))
+    for i, (m, title) in enumerate(meshes):
+        render_mesh(m, ax=fig.add_subplot(1, len(meshes), i + 1, projection="3d"), title=title, up=up)
+    fig.savefig(out / "meshes.png", dpi=dpi, bbox_inches="tight")
+    plt.close(fig)
+
+    amb = result.ambiguity
+    if amb is not None and amb.caps:
+        label = np.zeros(result.target.nvertices)
+        for i, cap in enumerate(amb.caps):
+            label[cap.vertices] = (i + 1) * (1 if cap.ambiguous else -1)
+        fig = render_mesh(result.embedding.mesh, values=label, cmap="coolwarm", up=up,
+                          title="tested caps (red: ambiguous, blue: decided)")
+        fig.savefig(out / "ambiguity.png", dpi=dpi, bbox_inches="tight")
+        plt.close(fig)
+
+    fig = plot_hammer(result.flow.sphere, np.log10(result.flow.factors), title="cMCF factors (log10 c)",
+                      label="log10 c")
+    fig.savefig(out / "factors.png", dpi=dpi, bbox_inches="tight")
+    plt.close(fig)
+
+    lam0 = result.spectra["target_pl"]
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
+    for key, lam in result.spectra.items():
+        a1.plot(lam, ".-", label=key, ms=4)
+        if key != "target_pl":
+            a2.semilogy(np.arange(1, lam.size), np.abs(lam[1:] / lam0[1:] - 1), ".-", label=key, ms=4)
+    a1.set_xlabel("index i")
+    a1.set_ylabel("λ_i (1/area)")
+    a1.legend(fontsize=8)
+    a2.set_xlabel("index i")
+    a2.set_ylabel("|λ_i / λ_i(target) − 1|")
+    a2.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "spectra.png", dpi=dpi, bbox_inches="tight")
+    plt.close(fig)
+
+    rows = "\n".join(f"| {key} | {v:.3g} |" for key, v in s["spectral_error"].items())
+    status = "\n".join(f"| {key} | {v} |" for key, v in s["status"].items())
+    fe = s["factor_errors"]["embedded_vs_cmcf"]
+    caps = ""
+    if s["ambiguity"] is not None:
+        caps = "\n".join(f"| {c['kind']} | {c['area_fraction']:.3f} | {c['rms_original']:.3g} | "
+                         f"{c['rms_mirrored']:.3g} | {'yes' if c['ambiguous'] else 'no'} |" for c in s["ambiguity"]["caps"])
+        caps = ("\n## Bumps and dips\n\nCaps (regions of positive Gaussian curvature) mirrored through the plane of "
+                "their rim and relaxed; *ambiguous* means the edge lengths fit about as well either way, so the "
+                "pressure prior (outwards) made the choice.\n\n| kind | area fraction | rms strain as embedded | "
+                f"rms strain mirrored | ambiguous |\n|---|---|---|---|---|\n{caps}\n\n![caps](ambiguity.png)\n")
+    text = f"""# Validation of `{s['name']}` ({s['nvertices']} vertices)
+
+Generated by `shspec validate`. Numbers: `summary.json`.
+
+## Re-embedding of the target's cMCF factors
+
+| quantity | value |
+|---|---|
+| relative edge-length error (rms / max) | {s['edge_length_error']:.3g} / {s['edge_length_error_max']:.3g} |
+| Hausdorff / bounding-box diagonal | {s['hausdorff_relative']:.3g} |
+| Chamfer / bounding-box diagonal | {s['chamfer_relative']:.3g} |
+| folded faces / self-intersections | {s['folded_faces']} / {s['self_intersections']} |
+| continuation steps / Gauss–Newton iterations | {s['embed_steps']} / {s['embed_iterations']} |
+| time (s) | {s['embed_seconds']:.1f} |
+| factor error of the re-embedded mesh (per-degree power, La = {s['lmax_factor']}) | {fe['power_error']:.3g} |
+| factor range of the target (min / max c) | {s['cmcf']['factor_min']:.3g} / {s['cmcf']['factor_max']:.3g} |
+
+![meshes](meshes.png)
+
+![factors](factors.png)
+
+## Spectra (first {s['numeig']} eigenvalues)
+
+Largest relative deviation from the target's PL spectrum, i ≥ 1:
+
+| source | max_i \\|λ_i/λ_i(target) − 1\\| |
+|---|---|
+{rows}
+
+![spectra](spectra.png)
+{caps}
+## Steps
+
+| step | status |
+|---|---|
+{status}
+"""
+    path = out / "report.md"
+    path.write_text(text)
+    return path
