@@ -12,7 +12,8 @@ a *pressure prior*: on a round sphere a pressure β stretches every edge by a st
 reads as "how much strain we trade for volume".  It is the principled default for the bump/dip ambiguity: the
 metric does not tell a bump from a dip of the same shape, but the bump encloses more volume, so during the
 continuation every new feature grows outwards.  β is switched off for the final iterations, so the result is a
-stationary point of the strain alone, and a dip the metric really forces (through the surrounding lengths) is
+stationary point of the strain alone (the fixed damping makes the convergence linear, not quadratic: it is
+stopped by ``tol`` when the remaining decrease is slow), and a dip the metric really forces (through the surrounding lengths) is
 kept.  :mod:`shspec.embed.ambiguity` then checks which concave regions could have been the other way.
 
 Solver
@@ -24,8 +25,10 @@ Gauss–Newton with a smoothing damping (a Levenberg–Marquardt step whose damp
 with L and M the cotan stiffness and lumped mass of the sphere mesh.  Edge lengths alone leave the motion of a
 vertex normal to a flat one-ring free to first order, and that is where folds start; B penalizes only the
 high-frequency part of the step, so smooth inflation is not slowed while vertex-scale wrinkles are.  ε fixes the
-rigid motions.  The system is sparse with the two-ring pattern of the mesh (≈ 9·19 n non-zeros, linear in n) and is
-factored by SuperLU; a backtracking Armijo line search on E makes every step a descent step.  An optional
+rigid motions.  The system is sparse with the two-ring pattern of the mesh (≈ 98 n non-zeros, linear in n) and is
+solved inexactly by conjugate gradients (each iteration one O(E) product), preconditioned by S ⊗ I₃ with S the
+n × n isotropic part of the matrix, factored by SuperLU once per continuation step in a nested-dissection order
+(fill ~ n log n).  A backtracking Armijo line search on E makes every step a descent step.  An optional
 bi-Laplacian filter of the factors (:func:`~shspec.embed.lengths.smooth_factors`) handles noisy input factors.
 
 Continuation: the factors grow from 1 to c as c^t (:mod:`shspec.embed.continuation`), a few Gauss–Newton steps
@@ -151,7 +154,7 @@ class EmbedResult:
     energy : (iterations,) array
         Energy E after each iteration (its pressure term included during the continuation).
     system_nnz : int
-        Non-zeros of the sparse 3n × 3n Gauss–Newton matrix (≈ 171 n: 3 × 3 blocks on the two-ring pattern).
+        Non-zeros of the sparse 3n × 3n Gauss–Newton matrix (≈ 98 n: 3 × 3 blocks on the two-ring pattern).
     converged : bool
         The final iterations met ``tol`` before ``final_iterations``.
     success : bool

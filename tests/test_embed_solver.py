@@ -1,0 +1,146 @@
+"""Re-embedding: round trips on smooth shapes, linear sparsity, target lengths, gradients, quality measures, errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from shspec.errors import InvalidArgumentError, MeshError, NotPositiveError
+from shspec.embed import (EmbedOptions, EmbedSystem, continuation_schedule, edge_length_error, embed, folded_faces,
+                          mesh_edges, nested_dissection, self_intersections, smooth_factors, surface_distance,
+                          target_edge_lengths)
+from shspec.mesh.cmcf import cmcf
+from shspec.mesh.shapes import blob, icosphere, star_surface
+
+
+@pytest.fixture(scope="module", params=["blob", "star"])
+def roundtrip(request):
+    mesh = blob(3) if request.param == "blob" else star_surface(2, 1, 0.5, subdivisions=3)
+    flow = cmcf(mesh)
+    return mesh, flow, embed(flow.sphere, flow.factors)
+
+
+def test_roundtrip_reproduces_the_surface(roundtrip):
+    mesh, flow, res = roundtrip
+    dist = surface_distance(res.mesh, mesh)
+    # 642 vertices: the cMCF factors themselves are accurate to ~1 % of the size (see the next test).
+    assert dist.hausdorff_relative < 0.03
+    assert dist.chamfer_relative < 0.01
+    assert res.folded_faces == 0 and res.self_intersections == 0 and res.success
+    assert res.mesh.signed_volume() > 0  # inflated outwards, not turned inside out
+
+
+def test_roundtrip_edge_error_is_below_the_discretization_level(roundtrip):
+    mesh, flow, res = roundtrip
+    # How well the true surface itself matches the target lengths: the discretization error of the cMCF factors.
+    level = edge_length_error(mesh, res.edges, res.target_lengths)[0]
+    assert 1e-3 < level < 2e-2
+    assert res.edge_error_rms < 0.3 * level
+
+
+def test_area_and_scale_follow_the_factors():
+    sphere = icosphere(2)
+    res = embed(sphere, np.full(sphere.nvertices, 4.0), EmbedOptions(check_intersections=False))
+    # Constant c = 4 doubles every length: the sphere of radius 2 (chords of the unit icosphere, doubled).
+    r = np.linalg.norm(res.mesh.vertices, axis=1)
+    assert np.allclose(r, 2.0, rtol=1e-6)
+    assert res.edge_error_rms < 1e-6 and res.steps == 1
+
+
+def test_system_sparsity_grows_linearly():
+    per_vertex = []
+    for s in (3, 4):
+        sphere = icosphere(s)
+        system = EmbedSystem(sphere, 1e-3, 1e-8)
+        lengths = target_edge_lengths(sphere, np.ones(sphere.nvertices), system.edges)
+        J = system.jacobian(sphere.vertices, lengths)
+        assert J.nnz == 6 * system.edges.shape[0]  # one row per edge, 6 entries: O(E) work per product
+        A = system.matrix(sphere.vertices, lengths)
+        per_vertex.append(A.nnz / sphere.nvertices)
+        system.precondition(lengths)
+        if s == 4:
+            fill = system._lu.L.nnz + system._lu.U.nnz
+    # 3x3 blocks on the two-ring pattern: ~100 per vertex whatever n is (less at the 12 degree-5 vertices).
+    assert max(per_vertex) / min(per_vertex) < 1.03 and max(per_vertex) < 110
+    # The nested-dissection factor of the 2562-vertex preconditioner stays far from dense (n² = 6.6e6).
+    assert fill < 0.1 * 2562 ** 2
+
+
+def test_nested_dissection_is_a_permutation():
+    sphere = icosphere(3)
+    system = EmbedSystem(sphere, 1e-3, 1e-8)
+    order = nested_dissection(sphere.vertices, system._reg_scalar)
+    assert np.array_equal(np.sort(order), np.arange(sphere.nvertices))
+    with pytest.raises(InvalidArgumentError):
+        nested_dissection(sphere.vertices, sp.identity(3))
+
+
+def test_gradients_match_finite_differences(rng):
+    sphere = icosphere(1)
+    system = EmbedSystem(sphere, 1e-3, 1e-8)
+    c = np.exp(0.3 * rng.standard_normal(sphere.nvertices))
+    lengths = target_edge_lengths(sphere, c, system.edges)
+    x = sphere.vertices + 0.05 * rng.standard_normal(sphere.vertices.shape)
+    r = system.residual(x, lengths)
+    grad = (system.jacobian(x, lengths).T @ r).reshape(-1, 3) / r.size - 0.1 * system.volume_gradient(x) / (4 * np.pi)
+    d = rng.standard_normal(x.shape)
+    h = 1e-6
+    fd = (system.energy(x + h * d, lengths, 0.1) - system.energy(x - h * d, lengths, 0.1)) / (2 * h)
+    assert np.vdot(grad, d) == pytest.approx(fd, rel=1e-6)
+
+
+def test_target_lengths_are_the_vertex_scaling_rule(rng):
+    sphere = icosphere(1)
+    c = np.exp(rng.standard_normal(sphere.nvertices))
+    e = mesh_edges(sphere)
+    chord = np.linalg.norm(sphere.vertices[e[:, 0]] - sphere.vertices[e[:, 1]], axis=1)
+    assert np.allclose(target_edge_lengths(sphere, c), chord * np.sqrt(np.sqrt(c[e[:, 0]] * c[e[:, 1]])))
+    assert e.shape[0] == 3 * sphere.nvertices - 6
+
+
+def test_smoothing_damps_noise_and_keeps_constants(rng):
+    sphere = icosphere(3)
+    assert np.allclose(smooth_factors(sphere, np.full(sphere.nvertices, 3.0), 1e-2), 3.0)
+    noisy = np.exp(0.3 * rng.standard_normal(sphere.nvertices))
+    smooth = smooth_factors(sphere, noisy, 1e-3)
+    assert np.std(np.log(smooth)) < 0.3 * np.std(np.log(noisy))
+
+
+def test_continuation_schedule():
+    assert np.allclose(continuation_schedule(np.ones(5)), [1.0])
+    t = continuation_schedule(np.array([1.0, np.e ** 2]), max_log_step=0.25)
+    assert t[-1] == 1.0 and np.all(np.diff(t) > 0) and t.size == 4
+    assert continuation_schedule(np.ones(3), 7).size == 7
+    with pytest.raises(InvalidArgumentError):
+        continuation_schedule(np.ones(3), 0)
+
+
+def test_quality_measures_detect_folds_and_intersections():
+    sphere = icosphere(2)
+    assert folded_faces(sphere) == 0 and self_intersections(sphere) == 0
+    x = sphere.vertices.copy()
+    x[0] *= -1.3  # push one vertex through the sphere and out: its fan folds and pierces the far side
+    bad = sphere.with_vertices(x)
+    assert folded_faces(bad) > 0
+    assert self_intersections(bad) > 0
+
+
+def test_invalid_input_raises():
+    sphere = icosphere(1)
+    with pytest.raises(NotPositiveError):
+        embed(sphere, -np.ones(sphere.nvertices))
+    with pytest.raises(InvalidArgumentError):
+        embed(sphere, np.ones(3))
+    with pytest.raises(InvalidArgumentError):
+        embed(sphere, np.full(sphere.nvertices, np.nan))
+    with pytest.raises(MeshError):
+        embed(sphere.with_vertices(2 * sphere.vertices), np.ones(sphere.nvertices))
+    with pytest.raises(InvalidArgumentError):
+        embed("sphere", np.ones(sphere.nvertices))
+    with pytest.raises(InvalidArgumentError):
+        EmbedOptions(pressure=-1.0)
+    with pytest.raises(InvalidArgumentError):
+        EmbedOptions(iterations=0)
+    with pytest.raises(InvalidArgumentError):
+        embed(sphere, np.ones(sphere.nvertices), options="fast")
