@@ -4,8 +4,9 @@ Both factors are Möbius-centred (a_1m = 0, :func:`~shspec.mesh.mobius.center_ha
 that best maps the fit onto the truth is found: rotations act on each degree by the Wigner-D matrices
 (``pyshtools.rotate.SHRotateRealCoef``), and a reflection is a rotation composed with the mirror z ↦ −z, which
 multiplies a_lm by (−1)^(l+m) (P_l^m(−x) = (−1)^(l+m) P_l^m(x)).  The search minimizes ‖R·a − b‖² over SO(3) for
-both a and its mirror image: the misfit is evaluated at the 60 rotations of the icosahedral group (neighbours are
-at most 37° apart), and Levenberg–Marquardt on local rotation-vector coordinates (around each seed) refines the best few.  The per-degree power
+both a and its mirror image.  Levenberg–Marquardt on local rotation-vector coordinates refines the 24 rotations of
+the octahedral group on the misfit of degrees ≤ 2 (smooth over SO(3)), then the best distinct few on degrees ≤ 3,
+4, ..., La in turn (see :func:`align`).  The per-degree power
 Σ_m a_lm², invariant under O(3), needs no alignment.
 """
 
@@ -21,12 +22,12 @@ import scipy.optimize
 from scipy.spatial.transform import Rotation
 
 from ..errors import InvalidArgumentError
-from ..harmonics import as_coefficients, degree_order, lmax_of_size
+from ..harmonics import as_coefficients, degree_order, lmax_of_size, ncoeffs
 
 __all__ = ["power_spectrum", "rotate_coefficients", "mirror_coefficients", "Alignment", "align"]
 
-#: Seeds refined by BFGS, per handedness.
-_REFINED_SEEDS = 4
+#: Candidates kept from one degree level to the next, per handedness.
+_REFINED_SEEDS = 8
 
 
 def power_spectrum(coeffs) -> np.ndarray:
@@ -148,23 +149,36 @@ def align(fit, truth, *, center: bool = True, center_tol: float = 1e-12) -> Alig
     if norm_b == 0 or np.linalg.norm(a) == 0:
         raise InvalidArgumentError("cannot align a zero factor")
     best = (np.inf, None, False)
-    rotate = _rotator(lmax)
-    seeds = Rotation.create_group("I")
+    seeds = Rotation.create_group("O")
     for mirrored in (False, True):
         src = mirror_coefficients(a) if mirrored else a
+        candidates = [seeds[i] for i in range(len(seeds))]
+        # Coarse to fine in degree: the misfit of degrees <= 2 varies slowly over SO(3) and has few local minima;
+        # each finer level refines the best candidates of the coarser one, so that the oscillating high degrees
+        # only ever see starts already close to a good minimum.
+        for level in range(min(2, lmax), lmax + 1):
+            n = ncoeffs(level)
+            rotate, src_l, b_l = _rotator(level), src[:n], b[:n]
 
-        def residual(omega, seed):
-            return rotate(src, _euler(Rotation.from_rotvec(omega) * seed)) - b
+            def residual(omega, seed):
+                return rotate(src_l, _euler(Rotation.from_rotvec(omega) * seed)) - b_l
 
-        scores = np.array([np.sum(residual(np.zeros(3), seeds[i]) ** 2) for i in range(len(seeds))])
-        for i in np.argsort(scores)[:_REFINED_SEEDS]:
-            # Levenberg–Marquardt on the coefficient residual converges to rounding level where minimizing the
-            # scalar misfit with finite-difference gradients would stall at ~1e-8.
-            res = scipy.optimize.least_squares(residual, np.zeros(3), args=(seeds[int(i)],), method="lm",
-                                               xtol=1e-12, ftol=1e-15, gtol=1e-15, max_nfev=100)
-            value = float(res.fun @ res.fun)
-            if value < best[0]:
-                best = (value, _euler(Rotation.from_rotvec(res.x) * seeds[int(i)]), mirrored)
+            refined = []
+            for seed in candidates:
+                res = scipy.optimize.least_squares(residual, np.zeros(3), args=(seed,), method="lm", xtol=1e-12,
+                                                   ftol=1e-15, gtol=1e-15, max_nfev=100)
+                refined.append((float(res.fun @ res.fun), Rotation.from_rotvec(res.x) * seed))
+            refined.sort(key=lambda item: item[0])
+            # Distinct candidates only: many seeds fall into the same minimum, and the degree-2 misfit alone has
+            # four equivalent ones (a quadrupole is symmetric under three half-turns) that finer degrees tell apart.
+            candidates = []
+            for _, rot in refined:
+                if all((rot.inv() * kept).magnitude() > 1e-3 for kept in candidates):
+                    candidates.append(rot)
+                if len(candidates) == _REFINED_SEEDS:
+                    break
+        if refined[0][0] < best[0]:
+            best = (refined[0][0], _euler(refined[0][1]), mirrored)
     _, angles, mirrored = best
     aligned = rotate_coefficients(mirror_coefficients(a) if mirrored else a, angles)
     pa, pb = power_spectrum(a), power_spectrum(b)

@@ -143,7 +143,7 @@ class LevenbergMarquardt(_Optimizer):
     _needs_jacobian = True
 
     def _init(self) -> None:
-        self.mu = 1e-3
+        self.mu = self.options.lm_damping
         self.nu = 2.0
 
     def _extra_state(self) -> dict:

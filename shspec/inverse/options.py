@@ -125,6 +125,9 @@ class FitOptions:
         Stop when an accepted step lowers the energy by less than energy_tol relative, 5 times in a row.
     lbfgs_memory : int
         Number of correction pairs kept by L-BFGS.
+    lm_damping : float
+        Initial Levenberg–Marquardt damping μ (relative to diag(JᵀJ)); large values make the first steps short
+        gradient-like steps.
     distinct_tol : float
         Two converged starts are the same local solution when their energies agree to this relative tolerance
         and their per-degree powers (rotation invariant) agree to it relative to the total power.
@@ -151,6 +154,7 @@ class FitOptions:
     step_tol: float = 1e-15
     energy_tol: float = 1e-6
     lbfgs_memory: int = 20
+    lm_damping: float = 1e-3
     distinct_tol: float = 1e-4
     success_tol: float = 1e-10
     checkpoint_every: int = 0
@@ -177,6 +181,7 @@ class FitOptions:
         for name in ("residual_tol", "step_tol", "energy_tol", "distinct_tol", "success_tol"):
             _positive_float(getattr(self, name), name)
         _positive_int(self.lbfgs_memory, "lbfgs_memory")
+        _positive_float(self.lm_damping, "lm_damping")
         _positive_int(self.checkpoint_every, "checkpoint_every", minimum=0)
         if self.checkpoint_every and not self.checkpoint_path:
             raise InvalidArgumentError("checkpoint_every > 0 needs a checkpoint_path")

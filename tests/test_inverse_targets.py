@@ -1,0 +1,73 @@
+"""Targets: the built-in blob, spectrum files, Weyl's area estimate, the command-line syntax."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from shspec.errors import InvalidArgumentError
+from shspec.inverse.align import mirror_coefficients, power_spectrum
+from shspec.inverse.options import Stage, parse_schedule
+from shspec.inverse.schedule import numeig_ramp
+from shspec.inverse.targets import (Target, blob_factor, estimate_area, parse_target, read_spectrum)
+
+
+def test_blob_is_centred_positive_asymmetric():
+    b = blob_factor()
+    assert b.lmax == 6 and np.all(b.coefficients[1:4] == 0)
+    assert b.area == pytest.approx(4 * np.pi)
+    assert 0.5 < b.minimum().value < 1.0
+    # No mirror symmetry z -> -z and odd degrees present: the fit must break parity.
+    assert not np.allclose(mirror_coefficients(b.coefficients), b.coefficients)
+    assert power_spectrum(b.coefficients)[3] > 0
+
+
+def test_estimate_area_on_spheres():
+    l = np.arange(12)
+    lam = np.repeat(l * (l + 1.0), 2 * l + 1)
+    assert estimate_area(lam) == pytest.approx(4 * np.pi, rel=2e-2)
+    assert estimate_area(lam / 3.0) == pytest.approx(12 * np.pi, rel=2e-2)
+
+
+@pytest.mark.parametrize("fmt", ["txt", "txt0", "npy", "json", "jsondict"])
+def test_read_spectrum_formats(tmp_path, fmt):
+    lam = np.array([2.0, 2.0, 2.0, 6.0])
+    path = tmp_path / ("s." + fmt.rstrip("0").replace("jsondict", "json"))
+    if fmt == "txt":
+        path.write_text("# eigenvalues\n" + "\n".join(map(str, lam)) + "\n")
+    elif fmt == "txt0":
+        path.write_text("\n".join(map(str, [0.0, *lam])))
+    elif fmt == "npy":
+        np.save(path, lam)
+    elif fmt == "json":
+        path.write_text(json.dumps(lam.tolist()))
+    else:
+        path.write_text(json.dumps({"eigenvalues": lam.tolist()}))
+    np.testing.assert_array_equal(read_spectrum(path), [0.0, *lam])
+    t = parse_target(f"spectrum:{path}", lmax=4, numeig=5, lmax_factor=2)
+    assert t.area is None and t.source == "file"
+
+
+def test_bad_targets(tmp_path):
+    bad = tmp_path / "bad.txt"
+    bad.write_text("one\ntwo\n")
+    with pytest.raises(InvalidArgumentError):
+        read_spectrum(bad)
+    for text in ("cube", "star:3,3", "star:a,b,c", "mesh:", 3):
+        with pytest.raises(InvalidArgumentError):
+            parse_target(text, lmax=4, numeig=5, lmax_factor=2)
+    with pytest.raises(InvalidArgumentError):
+        Target("x", np.array([1.0, 2.0]))  # no λ₀ = 0
+    with pytest.raises(InvalidArgumentError):
+        Target("x", np.array([0.0, 3.0, 2.0]))  # not ascending
+
+
+def test_schedule_syntax():
+    assert parse_schedule("2,4, 8") == (Stage(2), Stage(4), Stage(8))
+    assert parse_schedule("6:16,6:120") == (Stage(6, 16), Stage(6, 120))
+    for text in ("", "2;4", "2:3:4", "a"):
+        with pytest.raises(InvalidArgumentError):
+            parse_schedule(text)
+    assert [s.numeig for s in numeig_ramp(120)] == [16, 36, 64, 100, 120]
