@@ -149,7 +149,7 @@ class FitProblem:
             params[0] = a00
             for _ in range(30):
                 params[1:ncoeffs(la)] = noise[1:]
-                if self._minimum(params) >= 0.25 * a00:
+                if self._minimum(params) >= 0.25 * a00 / np.sqrt(4 * np.pi):  # a quarter of the mean of ρ
                     return params
                 noise = noise * 0.5
             raise InvalidArgumentError("could not draw a positive random start")  # pragma: no cover
