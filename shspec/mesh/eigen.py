@@ -19,8 +19,10 @@ The factorization is SciPy's SuperLU (:func:`scipy.sparse.linalg.splu`), the onl
 Multiplets
 ----------
 The solver keeps iterating until the (k+1)-th eigenvalue has converged too, so that it can tell whether the k-th
-one belongs to a group that continues past k.  Eigenvalues within ``multiplet_rtol`` (relative) of each other count
-as one degenerate group.  :func:`eigenpairs` with ``whole_multiplets=True`` (the default of :func:`mesh_spectrum`)
+one belongs to a group that continues past k.  Eigenvalues within ``multiplet_rtol`` times the largest computed
+one of each other count as one degenerate group.  A block of b vectors sees at most b copies of a repeated
+eigenvalue at first; when a group of b or more shows up, b random vectors are added to the basis and the result is
+accepted only once the count of eigenvalues up to the cut stays the same.  :func:`eigenpairs` with ``whole_multiplets=True`` (the default of :func:`mesh_spectrum`)
 returns more than k pairs when the k-th eigenvalue's group continues past k, so that no member is dropped; with
 ``whole_multiplets=False`` (what :class:`~shspec.mesh.model.MeshModel` needs: its interface returns exactly k) it
 returns exactly k and emits a ``RuntimeWarning`` when that cuts a group.  Clusters
@@ -62,9 +64,11 @@ class EigenOptions:
         Block size b.  Multiplicities up to b are found directly, larger ones through the random directions that
         replace exhausted ones; small blocks converge in fewer solves (8 was fastest for k = 100 on icospheres).
     multiplet_rtol : float
-        Relative distance under which neighbouring eigenvalues form one degenerate group.
+        Neighbouring eigenvalues closer than multiplet_rtol × (largest computed eigenvalue) form one degenerate
+        group; the absolute floor lets the zero eigenvalues of several components group too.
     max_dim : int or None
-        Largest Krylov basis before :class:`ConvergenceError`; None: min(n, 4k + 25b) (k = 100 needs ~350).
+        Largest Krylov basis before :class:`ConvergenceError`; None: min(n, 4k + 50b) (k = 100 needs ~350;
+        exact multiplicities above b need more).
     dense_below : int
         Meshes with fewer vertices are solved densely (:func:`scipy.linalg.eigh`), which is faster there.
     seed : int
@@ -108,12 +112,21 @@ def _check_pencil(L, M, k):
 
 
 def _group_end(lam: np.ndarray, k: int, rtol: float) -> int:
-    """Smallest j ≥ k such that lam[j] is not within rtol of lam[k-1] (len(lam) if all are)."""
+    """Smallest j ≥ k such that lam[j] is not within rtol·max|lam| of lam[k-1] (len(lam) if all are)."""
+    tol = rtol * max(np.abs(lam).max(), np.finfo(float).tiny)
     j = k
-    scale = max(abs(lam[k - 1]), np.finfo(float).tiny)
-    while j < lam.size and abs(lam[j] - lam[k - 1]) <= rtol * scale:
+    while j < lam.size and abs(lam[j] - lam[k - 1]) <= tol:
         j += 1
     return j
+
+
+def _largest_group(lam: np.ndarray, rtol: float) -> int:
+    """Size of the largest run of ascending eigenvalues whose neighbours are within rtol·max|lam| of each other."""
+    if lam.size == 0:
+        return 0
+    tol = rtol * max(np.abs(lam).max(), np.finfo(float).tiny)
+    bounds = np.concatenate([[0], np.flatnonzero(np.diff(lam) > tol) + 1, [lam.size]])
+    return int(np.diff(bounds).max())
 
 
 def _finish(L, M, Y, k, rtol, whole):
@@ -178,7 +191,7 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
     area = float(M.sum())
     sigma = opt.sigma if opt.sigma is not None else 0.45 * 4 * np.pi * k / area
     b = int(opt.block_size)
-    max_dim = min(n, opt.max_dim or 4 * k + 25 * b)
+    max_dim = min(n, opt.max_dim or 4 * k + 50 * b)
     diag = M.diagonal() if M.nnz == np.count_nonzero(M.diagonal()) else None
 
     def mmul(X):
@@ -191,18 +204,21 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
         sigma *= 1.0 + 1e-3
         lu = splu(sp.csc_matrix(L - sigma * M))
     rng = np.random.default_rng(opt.seed)
-    Q = np.empty((n, max_dim + b))
-    T = np.zeros((max_dim + b, max_dim + b))
+    # Room for one block past max_dim, plus b random vectors injected to test a large multiplet (below).
+    Q = np.empty((n, max_dim + 2 * b))
+    T = np.zeros((max_dim + 2 * b, max_dim + 2 * b))
     X = rng.standard_normal((n, b))
     X[:, 0] = 1.0  # the constants span the λ₀ = 0 eigenspace of a closed surface: give it to Lanczos for free
     X = lu.solve(mmul(X))
     first = _orthonormal_block(Q[:, :0], X, mmul, rng, scale=1.0)[0]
     prev, m, m_next = 0, 0, first.shape[1]
     Q[:, :m_next] = first
-    # Shift-invert Lanczos needs a basis of about 3k here (k = 100: ~340 vectors); Ritz checks cost an m-by-m
-    # eigendecomposition each, so they start at 2k and are spaced by 15 % growth of the basis.
-    next_check = 2 * k + 1
+    # The basis needed was 2.4k + 60 to 3.3k on icospheres and blob (k = 10..200); Ritz checks cost an m-by-m
+    # eigendecomposition each, so they start just below that, at 2.2k + 40, and are spaced by 15 % growth.
+    next_check = int(2.2 * k) + 40
     nconv = 0
+    inject = False
+    verified_count = -1
     while True:
         if m_next + b > max_dim:
             raise ConvergenceError(f"shift-invert Lanczos: only {nconv} of more than {k} eigenpairs converged "
@@ -227,7 +243,16 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
             C3 = basis.T @ mmul(W)
             W -= basis @ C3
             C2 += C3
+        width = W.shape[1]
+        if inject:
+            # Fresh random directions, orthogonal to the basis, enter with this block (their row of T is zero).
+            extra = rng.standard_normal((n, b))
+            for _ in range(2):
+                extra -= basis @ (basis.T @ mmul(extra))
+            W = np.hstack([W, extra])
+            inject = False
         new, coef = _orthonormal_block(basis, W, mmul, rng, scale=before.max())
+        coef = coef[:, :width]
         nb = new.shape[1]
         T[:m_next, m:m_next] = C + C2
         T[m_next:m_next + nb, m:m_next] = coef
@@ -252,7 +277,13 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
         lam = sigma + 1.0 / mu[:nconv]
         ascending = np.argsort(lam)
         # Done when the eigenvalue after the k-th one's group has converged too: then the group is known whole.
-        if nconv > k and _group_end(lam[ascending], k, opt.multiplet_rtol) < nconv:
+        end = _group_end(lam[ascending], k, opt.multiplet_rtol) if nconv > k else nconv
+        if end < nconv:
+            # A group of b or more equal eigenvalues may have more members than a block of b vectors has found
+            # so far: add b random vectors and accept only when the count below the cut stays the same.
+            if _largest_group(lam[ascending][:end + 1], opt.multiplet_rtol) >= b and end != verified_count:
+                verified_count, inject = end, True
+                continue
             return _finish(L, M, Q[:, :m] @ S[:, ascending], k, opt.multiplet_rtol, whole_multiplets)
 
 
