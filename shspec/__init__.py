@@ -7,8 +7,10 @@ from .galerkin import HarmonicModel, SpectrumResult, spectrum
 from .gaunt import real_gaunt
 from .wigner import wigner3j
 from .harmonics import cilm_to_vector, degree_order, flat_index, ncoeffs, vector_to_cilm, vector_to_shcoeffs
+from .inverse import FitOptions, FitResult, Stage, Target, align, fit
 
 __version__ = "0.1.0"
 
 __all__ = [*_errors_all, "cilm_to_vector", "degree_order", "flat_index", "ncoeffs", "vector_to_cilm",
-           "vector_to_shcoeffs", "real_gaunt", "wigner3j", "ConformalFactor", "HarmonicModel", "SpectrumResult", "spectrum", "__version__"]
+           "vector_to_shcoeffs", "real_gaunt", "wigner3j", "ConformalFactor", "HarmonicModel", "SpectrumResult", "spectrum", "__version__",
+           "FitOptions", "FitResult", "Stage", "Target", "align", "fit"]

@@ -1,0 +1,205 @@
+"""Benchmark of the inverse solver → benchmarks/results/bench_inverse.json (and figures in docs/figures/).
+
+Sections (each written to the JSON as soon as it is done, so a partial run still reports):
+
+* ``blob``: the built-in harmonic blob, Lb = 20, La = 6, 120 eigenvalues, 8 starts, Levenberg–Marquardt, one
+  stage and the numeig ramp (16, 36, 64, 100, 120): success rate, median time per start, error after alignment.
+* ``optimizers``: LM, L-BFGS, BFGS and gradient descent from the same start on a small problem that LM solves.
+* ``study``: the study's harmonic setting Lb = 30, La = 15 (256 coefficients), 256 eigenvalues, R = 0 and 1e-6.
+* ``bunny``: the PL fit of bunny_600 / bunny_1200 started from its own cMCF sphere (study Figures 2 and 1,
+  R = 0.1 and 0.05), against the baseline of the round start.
+
+Run ``python benchmarks/bench_inverse.py [--quick]``.  BLAS is limited to one thread: the machine is shared, and
+oversubscribed BLAS threads made one eigensolve ten times slower here.  Times are wall times on a loaded machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from threadpoolctl import threadpool_limits  # noqa: E402
+
+from shspec import HarmonicModel, __version__  # noqa: E402
+from shspec.harmonics import degrees  # noqa: E402
+from shspec.inverse import (FitOptions, align, blob_factor, fit, harmonic_target, mesh_target,  # noqa: E402
+                            numeig_ramp)
+from shspec.inverse import plots  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+OUT = ROOT / "benchmarks" / "results" / "bench_inverse.json"
+FIGURES = ROOT / "docs" / "figures"
+MESHES = Path("/work/shared/data/meshes")
+
+
+def _starts(result):
+    return [{"index": s.index, "relative_residual": s.relative_residual, "energy": s.energy,
+             "iterations": s.iterations, "time_s": s.seconds, "status": s.status, "success": s.success}
+            for s in result.starts]
+
+
+def _summary(result, truth=None):
+    out = {"success": result.success_count, "starts": len(result.starts),
+           "median_time_per_start_s": float(np.median([s.seconds for s in result.starts])),
+           "total_time_s": result.seconds, "best_relative_residual": result.best.relative_residual,
+           "distinct_solutions": len(result.solutions), "per_start": _starts(result)}
+    if truth is not None and result.kind == "harmonic":
+        al = align(result.factor(), truth)
+        out.update(relative_error=al.relative_error, power_error=al.power_error, mirrored=al.mirrored)
+    return out
+
+
+_SECTIONS = ("blob", "optimizers", "study", "bunny")
+
+
+def _save(report):
+    """Merge this run's sections into the JSON file (runs of different sections may overlap in time)."""
+    OUT.parent.mkdir(parents=True, exist_ok=True)
+    merged = json.loads(OUT.read_text()) if OUT.exists() else {}
+    merged.update({k: v for k, v in report.items() if k not in _SECTIONS or k in report["ran"]})
+    merged.pop("ran", None)
+    OUT.write_text(json.dumps(merged, indent=2) + "\n")
+
+
+def bench_blob(report, starts):
+    target = harmonic_target(blob_factor(), 20, 120)
+    model = HarmonicModel(20, 6)
+    section = {}
+    for name, schedule in (("direct", ()), ("ramp", numeig_ramp(120))):
+        result = fit(target, model, FitOptions(starts=starts, schedule=schedule, max_iter=150))
+        section[name] = _summary(result, target.truth)
+        report["blob"] = section
+        _save(report)
+        if name == "ramp" or result.success_count:
+            fig = plots.plot_factors(result)
+            fig.savefig(FIGURES / f"blob_fit_{name}.png", dpi=100)
+            plt.close(fig)
+            fig = plots.plot_history(result)
+            fig.savefig(FIGURES / f"blob_history_{name}.png", dpi=100)
+            plt.close(fig)
+
+
+def _random_centred(seed, la, amp):
+    l = degrees(la)
+    rng = np.random.default_rng([99, seed])
+    a = np.zeros(l.size)
+    a[0] = np.sqrt(4 * np.pi)
+    a[l >= 2] = (amp * a[0] / np.sqrt(2 * l + 1) / np.maximum(l, 1) * rng.standard_normal(l.size))[l >= 2]
+    return a
+
+
+def bench_optimizers(report, budget):
+    truth = _random_centred(1, 4, 0.15)
+    target = harmonic_target(truth, 12, 49)
+    model = HarmonicModel(12, 4)
+    section = {"setting": "Lb=12, La=4, 49 eigenvalues, random centred rho (seed 1), start seed 1, one start"}
+    for name in ("lm", "lbfgs", "bfgs", "gd"):
+        iters = 100 if name == "lm" else budget
+        result = fit(target, model, FitOptions(starts=1, seed=1, optimizer=name, max_iter=iters))
+        s = result.best
+        section[name] = {"iterations": s.iterations, "time_s": s.seconds, "relative_residual": s.relative_residual,
+                         "status": s.status}
+        report["optimizers"] = section
+        _save(report)
+
+
+def bench_study(report, max_iter):
+    truth = blob_factor(15)
+    target = harmonic_target(truth, 30, 256)
+    model = HarmonicModel(30, 15)
+    section = {"setting": "Lb=30, La=15 (256 coefficients), 256 eigenvalues, target: the blob, one start"}
+    for reg in (0.0, 1e-6):
+        result = fit(target, model, FitOptions(starts=1, reg=reg, max_iter=max_iter))
+        section[f"R={reg:g}"] = _summary(result, truth)
+        report["study"] = section
+        _save(report)
+
+
+def bench_bunny(report, max_iter, numeig):
+    from shspec.mesh.io import load_mesh
+    from shspec.mesh.model import MeshModel
+
+    section = {"setting": f"PL fit from the target's own cMCF sphere, {numeig} PL eigenvalues, start: round "
+                          "(constant factors, 1e-3 random)", "baseline": "the round start itself"}
+    for name, reg in (("bunny_600", 0.1), ("bunny_1200", 0.05)):
+        path = MESHES / f"{name}.obj"
+        if not path.exists():
+            section[name] = {"skipped": f"{path} not found"}
+            continue
+        t0 = time.perf_counter()
+        target = mesh_target(load_mesh(path), lmax=20, numeig=numeig, lmax_factor=10, name=name)
+        t_target = time.perf_counter() - t0
+        model = MeshModel(target.sphere)
+        result = fit(target, model, FitOptions(starts=1, reg=reg, max_iter=max_iter, start_amplitude=1e-3))
+        w = model.vertex_areas
+        c_true = target.factors
+
+        def err(c):
+            # RMS of log(c / c_true), area weighted: cMCF factors span several decades on the bunny (ears), so a
+            # plain relative L2 error is the error at a few vertices.
+            d = np.log(c / c_true)
+            return float(np.sqrt(w @ d ** 2 / w.sum()))
+
+        round_c = np.full(c_true.size, target.area / w.sum())
+        fig, spectra = plots.plot_validation(result)
+        fig.savefig(FIGURES / f"{name}_validation.png", dpi=100)
+        plt.close(fig)
+        fig = plots.plot_factors(result)
+        fig.savefig(FIGURES / f"{name}_factors.png", dpi=100)
+        plt.close(fig)
+        rel = {k: float(np.max(np.abs(v[1:] / spectra["target"][1:] - 1))) for k, v in spectra.items()}
+        section[name] = {"R": reg, "nvertices": int(c_true.size), "target_setup_s": t_target,
+                         "fit_time_s": result.seconds, "iterations": result.best.iterations,
+                         "status": result.best.status, "relative_residual": result.best.relative_residual,
+                         "log_factor_rms_error_fit": err(result.best.params),
+                         "log_factor_rms_error_round_baseline": err(round_c),
+                         "cmcf_factor_range": [float(c_true.min()), float(c_true.max())],
+                         "validation_max_rel_spectrum_error": {"cmcf_factors": rel["cmcf"], "fit": rel["fit"]}}
+        report["bunny"] = section
+        _save(report)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer starts and iterations")
+    parser.add_argument("--sections", default="blob,optimizers,study,bunny")
+    args = parser.parse_args(argv)
+    FIGURES.mkdir(parents=True, exist_ok=True)
+    report = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "python": sys.version.split()[0],
+                          "load_average_start": list(os.getloadavg()), "blas_threads": 1},
+              "shspec": __version__, "quick": args.quick}
+    sections = args.sections.split(",")
+    report["ran"] = sections
+    import warnings
+
+    # The mesh eigensolver warns when k cuts a near-degenerate group; on the cMCF spheres it does so every step.
+    warnings.filterwarnings("ignore", category=RuntimeWarning, module="shspec.mesh")
+    with threadpool_limits(1):
+        t0 = time.perf_counter()
+        if "blob" in sections:
+            bench_blob(report, 4 if args.quick else 8)
+        if "optimizers" in sections:
+            bench_optimizers(report, 200 if args.quick else 1000)
+        if "study" in sections:
+            bench_study(report, 20 if args.quick else 60)
+        if "bunny" in sections:
+            bench_bunny(report, 15 if args.quick else 40, 60 if args.quick else 100)
+    report["machine"]["load_average_end"] = list(os.getloadavg())
+    report["total_time_s"] = time.perf_counter() - t0
+    _save(report)
+    report.pop("ran")
+    print(json.dumps({k: v for k, v in report.items() if k != "machine"}, indent=1)[:3000])
+
+
+if __name__ == "__main__":
+    main()
