@@ -1,0 +1,232 @@
+"""Shared helpers of the benchmarks: machine description, thread control, timing, peak memory, JSON output.
+
+Benchmarks are not tests: they measure and write ``benchmarks/results/*.json``; nothing here asserts.  The machine
+is usually shared, so absolute times are noisy; the scripts time the compared paths side by side in one process
+(interleaved repeats) so that their *ratios* are meaningful, and record the load average before and after.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.metadata
+import json
+import os
+import platform
+import statistics
+import subprocess
+import threading
+import time
+import tracemalloc
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numba
+import numpy as np
+
+try:
+    import psutil
+except ImportError:  # pragma: no cover - listed in the bench extra
+    psutil = None
+try:
+    from threadpoolctl import threadpool_info, threadpool_limits
+except ImportError:  # pragma: no cover - listed in the bench extra
+    threadpool_info = threadpool_limits = None
+
+RESULTS = Path(__file__).resolve().parent / "results"
+REPO = Path(__file__).resolve().parent.parent
+
+
+def _version(name: str):
+    try:
+        return importlib.metadata.version(name)
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def load_average() -> list[float] | None:
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        return None
+
+
+def git_commit() -> str | None:
+    try:
+        return subprocess.run(["git", "-C", str(REPO), "rev-parse", "HEAD"], capture_output=True, text=True,
+                              check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+
+
+def library_source() -> dict:
+    """Where the measured shspec came from: its path, and whether the repo's library files had uncommitted edits.
+
+    The work tree may be shared with concurrent work; to measure a committed state, export it
+    (``git archive HEAD shspec | tar -x -C DIR``, with ``git rev-parse HEAD > DIR/COMMIT``) and run the benchmark
+    with ``PYTHONPATH=DIR`` from outside the repository root.
+    """
+    import shspec
+
+    pkg = Path(shspec.__file__).resolve().parent
+    out = {"shspec_imported_from": str(pkg)}
+    commit_file = pkg.parent / "COMMIT"
+    if commit_file.is_file():
+        out["shspec_exported_commit"] = commit_file.read_text().strip()
+    try:
+        out["repo_uncommitted_library_files"] = subprocess.run(
+            ["git", "-C", str(REPO), "status", "--porcelain", "--", "shspec"], capture_output=True, text=True,
+            check=True).stdout.split("\n")[:-1]
+    except (OSError, subprocess.CalledProcessError):
+        pass
+    return out
+
+
+def machine_info() -> dict:
+    """Platform, CPU, core count, library versions, BLAS pools (threadpoolctl), load average and date."""
+    info = {
+        "date_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "cpu": cpu_model(),
+        "cpu_count": os.cpu_count(),
+        "affinity_cpus": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None,
+        "load_average_1_5_15": load_average(),
+        "git_commit": git_commit(),
+        **library_source(),
+        "versions": {name: _version(name) for name in
+                     ("shspec", "numpy", "scipy", "numba", "pyshtools", "lapy", "sympy", "trimesh", "threadpoolctl",
+                      "psutil", "matplotlib")},
+        "numba_threading_layer_default_threads": numba.config.NUMBA_NUM_THREADS,
+        # recorded, never changed: on some processors these are set by the environment (see the env README)
+        "env": {k: os.environ.get(k) for k in ("OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE", "OMP_NUM_THREADS",
+                                                 "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")},
+        "blas": threadpool_info() if threadpool_info is not None else None,
+    }
+    if psutil is not None:
+        info["memory_total_gib"] = round(psutil.virtual_memory().total / 2**30, 1)
+    return info
+
+
+@contextlib.contextmanager
+def threads(n: int):
+    """Limit numba's parallel loops and every BLAS/OpenMP pool of the process to ``n`` threads."""
+    old = numba.get_num_threads()
+    numba.set_num_threads(n)
+    try:
+        if threadpool_limits is not None:
+            with threadpool_limits(limits=n):
+                yield
+        else:
+            yield
+    finally:
+        numba.set_num_threads(old)
+
+
+def timed(fn, *args, **kwargs):
+    """(seconds, result) of one call."""
+    t0 = time.perf_counter()
+    out = fn(*args, **kwargs)
+    return time.perf_counter() - t0, out
+
+
+def summarize(times: list[float]) -> dict:
+    return {"median_s": statistics.median(times), "min_s": min(times), "max_s": max(times), "repeats": len(times),
+            "all_s": [round(t, 6) for t in times]}
+
+
+def side_by_side(funcs: dict, repeats: int, warmup: int = 1) -> dict:
+    """Time several zero-argument callables in interleaved rounds (a, b, c, a, b, c, ...); summaries per name.
+
+    Interleaving spreads the fluctuations of a shared machine evenly over the compared paths, so that the ratios
+    of the medians are fair even when the absolute times drift.
+    """
+    for _ in range(warmup):
+        for fn in funcs.values():
+            fn()
+    times = {name: [] for name in funcs}
+    for _ in range(repeats):
+        for name, fn in funcs.items():
+            times[name].append(timed(fn)[0])
+    return {name: summarize(t) for name, t in times.items()}
+
+
+class _RssSampler:
+    """Peak resident set size while a block runs, sampled every ``interval`` seconds in a thread."""
+
+    def __init__(self, interval: float = 0.002):
+        self.interval = interval
+        self.peak = 0
+        self._stop = threading.Event()
+
+    def _run(self):
+        proc = psutil.Process()
+        while not self._stop.is_set():
+            self.peak = max(self.peak, proc.memory_info().rss)
+            time.sleep(self.interval)
+
+    def __enter__(self):
+        self.base = psutil.Process().memory_info().rss
+        self.peak = self.base
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+        self.peak = max(self.peak, psutil.Process().memory_info().rss)
+
+
+def peak_memory(fn) -> dict:
+    """Peak memory of one (untimed) call: numpy/Python allocations by tracemalloc, and the RSS growth by psutil.
+
+    tracemalloc sees every numpy array (numpy reports to it) but not numba's internal temporaries; the RSS
+    high-water mark sees everything but is coarser (page granularity, allocator caching, 2 ms sampling).
+    """
+    out = {}
+    tracemalloc.start()
+    tracemalloc.reset_peak()
+    base = tracemalloc.get_traced_memory()[0]
+    result = fn()
+    out["tracemalloc_peak_bytes"] = tracemalloc.get_traced_memory()[1] - base
+    tracemalloc.stop()
+    del result
+    if psutil is not None:
+        with _RssSampler() as s:
+            result = fn()
+        out["rss_growth_bytes"] = s.peak - s.base
+        del result
+    return out
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.floating):
+        x = float(x)
+    if isinstance(x, float) and not np.isfinite(x):
+        return None if np.isnan(x) else ("inf" if x > 0 else "-inf")
+    return x
+
+
+def write_json(name: str, data: dict) -> Path:
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    path = RESULTS / name
+    path.write_text(json.dumps(_jsonable(data), indent=1) + "\n")
+    return path
