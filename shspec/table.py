@@ -280,49 +280,61 @@ def _assemble_upper(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, co
 
 
 @nb.njit(cache=True, parallel=True)
-def _contract(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, bmat, nfactor):
-    part = np.zeros((rows.size, nfactor))
-    for r in nb.prange(rows.size):
-        l1 = rows[r]
-        g = part[r]
-        for e in range(starts[l1], starts[l1 + 1]):
-            i = ei[e]
-            j = ej[e]
-            bij = bmat[i, j] if i == j else bmat[i, j] + bmat[j, i]
-            w = efac[e] * bij
-            m3 = em3[e]
-            l3 = el3[e]
-            base = eoff[e]
-            for t in range(ecnt[e]):
-                g[l3 * l3 + l3 + m3] += w * values[base + t]
-                l3 += 2
+def _contract(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, bmat, nfactor, nchunks):
+    # one partial sum per chunk of rows (chunks interleave the rows, which come sorted by work, to balance them)
+    part = np.zeros((nchunks, nfactor))
+    for c in nb.prange(nchunks):
+        g = part[c]
+        for r in range(c, rows.size, nchunks):
+            l1 = rows[r]
+            for e in range(starts[l1], starts[l1 + 1]):
+                i = ei[e]
+                j = ej[e]
+                bij = bmat[i, j] if i == j else bmat[i, j] + bmat[j, i]
+                w = efac[e] * bij
+                m3 = em3[e]
+                l3 = el3[e]
+                base = eoff[e]
+                for t in range(ecnt[e]):
+                    g[l3 * l3 + l3 + m3] += w * values[base + t]
+                    l3 += 2
     return part.sum(axis=0)
 
 
 @nb.njit(cache=True, parallel=True)
-def _quad_forms(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, vecs, nfactor):
+def _quad_forms(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, vecs, nfactor, nchunks):
     # out[k, q] = v_qᵀ G_k v_q for each column q of vecs; rows of vecs are basis indices
     nq = vecs.shape[1]
-    part = np.zeros((rows.size, nfactor, nq))
-    for r in nb.prange(rows.size):
-        l1 = rows[r]
+    part = np.zeros((nchunks, nfactor, nq))
+    for c in nb.prange(nchunks):
         p = np.empty(nq)
-        for e in range(starts[l1], starts[l1 + 1]):
-            i = ei[e]
-            j = ej[e]
-            w = efac[e] if i == j else 2.0 * efac[e]
-            for q in range(nq):
-                p[q] = w * vecs[i, q] * vecs[j, q]
-            m3 = em3[e]
-            l3 = el3[e]
-            base = eoff[e]
-            for t in range(ecnt[e]):
-                row = part[r, l3 * l3 + l3 + m3]
-                v = values[base + t]
+        for r in range(c, rows.size, nchunks):
+            l1 = rows[r]
+            for e in range(starts[l1], starts[l1 + 1]):
+                i = ei[e]
+                j = ej[e]
+                w = efac[e] if i == j else 2.0 * efac[e]
                 for q in range(nq):
-                    row[q] += v * p[q]
-                l3 += 2
+                    p[q] = w * vecs[i, q] * vecs[j, q]
+                m3 = em3[e]
+                l3 = el3[e]
+                base = eoff[e]
+                for t in range(ecnt[e]):
+                    row = part[c, l3 * l3 + l3 + m3]
+                    v = values[base + t]
+                    for q in range(nq):
+                        row[q] += v * p[q]
+                    l3 += 2
     return part.sum(axis=0)
+
+
+@nb.njit(cache=True, parallel=True)
+def _mirror_upper(out):
+    # copy the strict upper triangle into the lower one; each thread writes whole rows
+    n = out.shape[0]
+    for i in nb.prange(n):
+        for j in range(i):
+            out[i, j] = out[j, i]
 
 
 @nb.njit(cache=True, parallel=True)
@@ -436,8 +448,7 @@ class GauntTable:
         out = np.zeros((self.nbasis, self.nbasis))
         _assemble_upper(self._rows, *self.plan.arrays, self.values, coef, out)
         if symmetrize:
-            iu = np.triu_indices(self.nbasis, 1)
-            out[iu[1], iu[0]] = out[iu]
+            _mirror_upper(out)
         return out
 
     def contract(self, bmat: np.ndarray) -> np.ndarray:
@@ -445,14 +456,15 @@ class GauntTable:
         bmat = np.asarray(bmat, dtype=float)
         if bmat.shape != (self.nbasis, self.nbasis):
             raise InvalidArgumentError(f"B must have shape {(self.nbasis, self.nbasis)}, got {bmat.shape}")
-        return _contract(self._rows, *self.plan.arrays, self.values, bmat, self.nfactor)
+        return _contract(self._rows, *self.plan.arrays, self.values, bmat, self.nfactor, nb.get_num_threads())
 
     def quadratic_forms(self, vecs: np.ndarray) -> np.ndarray:
         """Q[k, q] = v_qᵀ G_k v_q for the columns v_q of ``vecs`` (nbasis, nq); returns (nfactor, nq)."""
         vecs = np.asarray(vecs, dtype=float)
         if vecs.ndim != 2 or vecs.shape[0] != self.nbasis:
             raise InvalidArgumentError(f"vectors must have shape ({self.nbasis}, q), got {vecs.shape}")
-        return _quad_forms(self._rows, *self.plan.arrays, self.values, np.ascontiguousarray(vecs), self.nfactor)
+        return _quad_forms(self._rows, *self.plan.arrays, self.values, np.ascontiguousarray(vecs), self.nfactor,
+                           nb.get_num_threads())
 
     def _check_coef(self, coef) -> np.ndarray:
         coef = np.asarray(coef, dtype=float)
