@@ -1,0 +1,139 @@
+"""``sh-inverse``: the harmonic inverse on the blob, raw and regularized (Sections 3.4.1, 3.4.2), and the structured
+schedule of the study's appendix A.2 against a single-stage fit.
+
+Target: the first K Galerkin eigenvalues of the built-in blob ρ (degree 6, :func:`shspec.inverse.blob_factor`) at
+basis band limit Lb.  Model: :class:`HarmonicModel` (Lb, La) with La ≥ 6, i.e. (La+1)² coefficients, gauge a_1m = 0,
+area known.  Three fits with the same iteration budget from the same random start (same seed):
+
+* ``raw``: one stage, every eigenvalue, R = 0 (Section 3.4.1);
+* ``regularized``: the same with the bi-Laplacian weight R (Section 3.4.2);
+* ``structured``: a schedule of stages of growing factor degree and eigenvalue count (appendix A.2: low
+  frequencies first, kept as the start of the next stage), the budget split evenly over its stages.
+
+Each fit is compared with the truth after Möbius centering and the best element of O(3)
+(:func:`shspec.inverse.align`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..galerkin import HarmonicModel
+from ..inverse import (FitOptions, Stage, align, blob_factor, fit, harmonic_target, parse_schedule, power_spectrum,
+                       save_result)
+from ..inverse.plots import plot_factors
+from .base import Experiment, Finding, register
+from .common import figure, save_figure
+from .fitting import Progress, single_threaded
+
+
+def _power_error(a, b) -> float:
+    """Relative error of the per-degree power Σ_m a_lm² (invariant under O(3)), of two centred factors."""
+    pa, pb = power_spectrum(a), power_spectrum(b)
+    return float(np.linalg.norm(pa - pb) / np.linalg.norm(pb))
+
+
+def _structured(text: str, budget: int, numeig: int, lmax_factor: int) -> tuple:
+    stages = parse_schedule(text)
+    if stages[-1].lmax_factor != lmax_factor or (stages[-1].numeig or numeig) != numeig:
+        stages = (*stages, Stage(lmax_factor=lmax_factor, numeig=numeig))
+    per = max(budget // len(stages), 1)
+    last = max(budget - per * (len(stages) - 1), 1)
+    return tuple(Stage(lmax_factor=s.lmax_factor, numeig=s.numeig, max_iter=per if i < len(stages) - 1 else last)
+                 for i, s in enumerate(stages))
+
+
+def run(cfg: dict, out, progress: bool) -> Finding:
+    lb, la, k = cfg["lmax"], cfg["lmax_factor"], cfg["numeig"]
+    budget = cfg["max_iter"]
+    base = dict(starts=cfg["starts"], seed=cfg["seed"], max_iter=budget)
+    fits = {"raw": FitOptions(**base),
+            "regularized": FitOptions(**base, reg=cfg["reg"]),
+            "structured": FitOptions(**base, schedule=_structured(cfg["schedule"], budget, k, la))}
+    bar = Progress(progress, len(fits), "sh-inverse")
+    rows, results, alignments = [], {}, {}
+    with single_threaded():
+        truth = blob_factor(la)
+        target = harmonic_target(truth, lb, k, name="blob")
+        model = HarmonicModel(lb, la)
+        for name, opts in fits.items():
+            result = fit(target, model, opts)
+            best = result.best
+            # align() took 5-10 s per call here (thousands of scipy Rotation objects); quick runs align only "raw".
+            al = align(result.factor(), target.truth) if cfg["align_all"] or name == "raw" else None
+            # The energy without the regularizer, so that the three fits compare on the same spectral misfit.
+            lam = best.eigenvalues
+            spectral = 0.5 * float(np.sum(((lam[1:] - target.eigenvalues[1:]) / target.eigenvalues[1:]) ** 2))
+            rows.append({"fit": name, "reg": opts.reg, "stages": len(opts.schedule) or 1,
+                         "iterations": best.iterations, "seconds": result.seconds, "energy": best.energy,
+                         "spectral_energy": spectral, "residual_max": best.relative_residual,
+                         "error_aligned": al.relative_error if al else float("nan"),
+                         "power_error": _power_error(result.factor().coefficients, truth.coefficients),
+                         "status": best.status})
+            results[name], alignments[name] = result, al
+            save_result(out / f"fit_{name}.h5", result)
+            bar.step(f"{name}: energy {best.energy:.2e}, error {rows[-1]['error_aligned']:.3f}, "
+                     f"{result.seconds:.0f} s")
+
+    figures = []
+    for name in ("raw", "regularized"):
+        if alignments[name] is None:
+            continue
+        figures.append(f"factors_{name}.png")
+        fig = plot_factors(results[name], alignments[name])
+        fig.suptitle(f"{name} fit (La = {la}, Lb = {lb}, K = {k}): target, aligned fit, difference")
+        save_figure(fig, out / f"factors_{name}.png")
+    fig, axes = figure(1, 3, width=17)
+    for name, result in results.items():
+        h = result.best.history
+        axes[0].semilogy(np.arange(h.shape[0]), h[:, 1], label=name)
+        axes[1].semilogy(np.arange(h.shape[0]), h[:, 2], label=name)
+        power = power_spectrum(result.factor().coefficients)
+        axes[2].semilogy(np.arange(power.size), np.maximum(power, 1e-30), ".-", label=f"fit: {name}")
+    power = power_spectrum(truth.coefficients)
+    axes[2].semilogy(np.arange(power.size), np.maximum(power, 1e-30), "k--", label="truth")
+    axes[0].set_ylabel("energy")
+    axes[1].set_ylabel("max relative eigenvalue residual")
+    for ax in axes[:2]:
+        ax.set_xlabel("iteration (all stages)")
+    axes[2].set_xlabel("degree l")
+    axes[2].set_ylabel("power sum_m a_lm^2")
+    for ax in axes:
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    save_figure(fig, out / "history.png")
+
+    r = {row["fit"]: row for row in rows}
+    numbers = {name: {key: row[key] for key in ("energy", "spectral_energy", "residual_max", "error_aligned",
+                                                   "seconds", "iterations")} for name, row in r.items()}
+    better = "structured" if r["structured"]["spectral_energy"] < r["raw"]["spectral_energy"] else "single-stage"
+    summary = (
+        f"Harmonic inverse of the blob (degree 6, fitted with La = {la}: {(la + 1) ** 2} coefficients, Lb = {lb}, "
+        f"K = {k} eigenvalues, {cfg['starts']} random start(s), a budget of {budget} Levenberg-Marquardt iterations "
+        f"per fit). Raw (Section 3.4.1): spectral energy {r['raw']['spectral_energy']:.2e}, largest relative "
+        f"residual {r['raw']['residual_max']:.1e}, relative L2 error of rho after Möbius/O(3) alignment "
+        f"{r['raw']['error_aligned']:.3f} (per-degree power error {r['raw']['power_error']:.3f}), "
+        f"{r['raw']['seconds']:.0f} s. Regularized with R = {cfg['reg']:g} "
+        f"(Section 3.4.2): {r['regularized']['spectral_energy']:.2e}, {r['regularized']['residual_max']:.1e}, error "
+        f"{r['regularized']['error_aligned']:.3f} (power {r['regularized']['power_error']:.3f}), "
+        f"{r['regularized']['seconds']:.0f} s. The structured schedule "
+        f"(appendix A.2: {cfg['schedule']}, then the full fit; {r['structured']['stages']} stages sharing the same "
+        f"budget): {r['structured']['spectral_energy']:.2e}, {r['structured']['residual_max']:.1e}, error "
+        f"{r['structured']['error_aligned']:.3f} (power {r['structured']['power_error']:.3f}), "
+        f"{r['structured']['seconds']:.0f} s. At equal iteration budget "
+        f"the {better} fit ends at the lower spectral energy"
+        + ("" if cfg["align_all"] else " (quick run: only the raw fit is aligned; nan = not aligned)")
+        + ". The fits stop by "
+        + ", ".join(f"{row['fit']}: {row['status']}" for row in rows)
+        + "; none is a converged exact recovery unless its error is at rounding level.")
+    return Finding(summary, {"sh_inverse": rows}, [*figures, "history.png"], numbers)
+
+
+register(Experiment(
+    name="sh-inverse", title="Harmonic inverse of the blob: raw, regularized, structured schedule",
+    reproduces="the study's Sections 3.4.1 and 3.4.2 (a = 256, L = 30, R = 1e-6) and appendix A.2",
+    defaults={"lmax": 30, "lmax_factor": 15, "numeig": 300, "reg": 1e-6, "starts": 1, "seed": 0, "max_iter": 30,
+              "schedule": "2:16,4:36,6:64,10:144", "align_all": True},
+    quick={"lmax": 10, "lmax_factor": 6, "numeig": 49, "reg": 1e-6, "starts": 1, "seed": 0, "max_iter": 8,
+           "schedule": "2:16,4:36", "align_all": False},
+    expected_minutes=5.0, run=run))
