@@ -1,6 +1,7 @@
 """Reproducible experiments of the study, one command each (``shspec experiment NAME``)."""
 
-from . import identifiability, pl_numeig, pl_perturbation, sh_convergence, sh_inverse  # noqa: F401  (registration)
+from . import (identifiability, pl_bunny, pl_numeig, pl_perturbation, sh_convergence,  # noqa: F401  (registration)
+               sh_inverse)
 from .base import EXPERIMENTS, Experiment, Finding, run_experiment
 
 __all__ = ["EXPERIMENTS", "Experiment", "Finding", "run_experiment"]
