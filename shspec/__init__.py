@@ -1,16 +1,41 @@
-"""shspec: spectral geometry of genus-0 surfaces g = ρ·g₀ in the spherical-harmonic basis and on triangle meshes."""
+"""shspec: spectral geometry of genus-0 surfaces g = ρ·g₀ in the spherical-harmonic basis and on triangle meshes.
 
+The public API is a few verbs over a few value objects:
+
+* value objects: :class:`ConformalFactor` (ρ), :class:`TriangleMesh`, :class:`GauntTable`, :class:`FitResult`;
+* verbs: :func:`spectrum` (forward), :func:`convergence`, :func:`fit` (inverse), :func:`align` (compare up to
+  Möbius and O(3)), :func:`cmcf` (mesh → sphere), :func:`embed` (factors → surface);
+* the engine underneath: :func:`wigner3j`, :func:`real_gaunt`, :func:`get_table`.
+"""
+
+from .cache import get_table
+from .convergence import convergence, convergence_in_factor
+from .embed import EmbedOptions, EmbedResult, embed
 from .errors import *  # noqa: F401,F403
 from .errors import __all__ as _errors_all
 from .factor import ConformalFactor
 from .galerkin import HarmonicModel, SpectrumResult, spectrum
 from .gaunt import real_gaunt
-from .wigner import wigner3j
 from .harmonics import cilm_to_vector, degree_order, flat_index, ncoeffs, vector_to_cilm, vector_to_shcoeffs
 from .inverse import FitOptions, FitResult, Stage, Target, align, fit
+from .mesh import CMCFOptions, CMCFResult, MeshModel, TriangleMesh, cmcf, load_mesh, mesh_spectrum, save_mesh
+from .table import GauntTable
+from .wigner import wigner3j
 
 __version__ = "0.1.0"
 
-__all__ = [*_errors_all, "cilm_to_vector", "degree_order", "flat_index", "ncoeffs", "vector_to_cilm",
-           "vector_to_shcoeffs", "real_gaunt", "wigner3j", "ConformalFactor", "HarmonicModel", "SpectrumResult", "spectrum", "__version__",
-           "FitOptions", "FitResult", "Stage", "Target", "align", "fit"]
+__all__ = [
+    *_errors_all,
+    # conventions
+    "cilm_to_vector", "vector_to_cilm", "vector_to_shcoeffs", "degree_order", "flat_index", "ncoeffs",
+    # engine
+    "wigner3j", "real_gaunt", "GauntTable", "get_table",
+    # forward
+    "ConformalFactor", "HarmonicModel", "SpectrumResult", "spectrum", "convergence", "convergence_in_factor",
+    # inverse
+    "FitOptions", "FitResult", "Stage", "Target", "fit", "align",
+    # meshes and re-embedding
+    "TriangleMesh", "load_mesh", "save_mesh", "mesh_spectrum", "MeshModel", "cmcf", "CMCFOptions", "CMCFResult",
+    "embed", "EmbedOptions", "EmbedResult",
+    "__version__",
+]
