@@ -45,6 +45,26 @@ def test_identifiability_reaches_full_rank_modulo_rotations(runs):
     assert ranks == sorted(ranks) and ranks[-1] == numbers["max_rank"]
 
 
+def test_identifiability_noisy_fits_follow_the_linear_prediction(runs):
+    numbers = json.loads((runs / "identifiability" / "meta.json").read_text())["numbers"]
+    assert all(0.5 < r < 2 for r in numbers["noisy_fit_ratio"])
+    errors = numbers["noisy_fit_error"]
+    assert errors == sorted(errors)
+
+
+def test_pl_perturbation_error_grows_with_p(runs):
+    numbers = json.loads((runs / "pl-perturbation" / "meta.json").read_text())["numbers"]
+    assert numbers["spearman_error_vs_p"] > 0.5
+    assert (runs / "pl-perturbation" / "results.h5").is_file()
+
+
+def test_sh_inverse_reports_every_fit(runs):
+    numbers = json.loads((runs / "sh-inverse" / "meta.json").read_text())["numbers"]
+    assert set(numbers) == {"raw", "regularized", "structured"}
+    assert all(v["spectral_energy"] >= 0 and v["iterations"] > 0 for v in numbers.values())
+    assert list((runs / "sh-inverse").glob("fit_*.h5"))
+
+
 class _Checker(HTMLParser):
     VOID = {"meta", "img", "br", "hr", "link", "input"}
 

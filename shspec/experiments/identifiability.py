@@ -167,4 +167,4 @@ register(Experiment(
     quick={"lmax_factor": 4, "lmax": 12, "amplitude": 0.3, "seed": 3, "rank_tol": 1e-8,
            "numeig_values": [9, 16, 36, 64], "noise_levels": [1e-8, 1e-6, 1e-4, 1e-3],
            "fit_numeig": 36, "fit_noise_levels": [1e-8, 1e-5, 1e-3], "fit_max_iter": 10, "noise_seed": 11},
-    expected_minutes=3.0, run=run))
+    expected_minutes=2.0, run=run))

@@ -136,4 +136,4 @@ register(Experiment(
               "schedule": "2:16,4:36,6:64,10:144", "align_all": True},
     quick={"lmax": 10, "lmax_factor": 6, "numeig": 49, "reg": 1e-6, "starts": 1, "seed": 0, "max_iter": 8,
            "schedule": "2:16,4:36", "align_all": False},
-    expected_minutes=5.0, run=run))
+    expected_minutes=4.0, run=run))
