@@ -9,9 +9,15 @@ import scipy.sparse as sp
 from shspec.errors import InvalidArgumentError, MeshError, NotPositiveError
 from shspec.embed import (EmbedOptions, EmbedSystem, continuation_schedule, edge_length_error, embed, folded_faces,
                           mesh_edges, nested_dissection, self_intersections, smooth_factors, surface_distance,
-                          target_edge_lengths)
+                          target_edge_lengths, vertex_factors)
+from shspec.embed.embed import _iterate
+from shspec.factor import ConformalFactor
+from shspec.mesh.bridge import sample_harmonic
 from shspec.mesh.cmcf import cmcf
+from shspec.mesh.io import load_mesh
 from shspec.mesh.shapes import blob, icosphere, star_surface
+
+from conftest import SHARED_MESHES, random_factor_coefficients
 
 
 @pytest.fixture(scope="module", params=["blob", "star"])
@@ -46,6 +52,99 @@ def test_area_and_scale_follow_the_factors():
     r = np.linalg.norm(res.mesh.vertices, axis=1)
     assert np.allclose(r, 2.0, rtol=1e-6)
     assert res.edge_error_rms < 1e-6 and res.steps == 1
+
+
+def test_a_moebius_boost_embeds_as_the_round_sphere():
+    # ρ_k of NOTES.md pulls the round metric back by a Möbius map: an isometric copy of the unit sphere, here with
+    # factors spanning k⁴ = 4096.
+    sphere, k = icosphere(3), 8.0
+    z = sphere.vertices[:, 2]
+    c = k ** 2 / ((1 + z) / 2 + k ** 2 * (1 - z) / 2) ** 2
+    res = embed(sphere, c, EmbedOptions(check_intersections=False))
+    x = res.mesh.vertices
+    sol = np.linalg.lstsq(np.c_[2 * x, np.ones(len(x))], np.sum(x * x, axis=1), rcond=None)[0]
+    radius = np.sqrt(sol[3] + sol[:3] @ sol[:3])
+    assert radius == pytest.approx(1.0, abs=2e-3)
+    assert np.max(np.abs(np.linalg.norm(x - sol[:3], axis=1) / radius - 1)) < 5e-3
+    assert res.edge_error_rms < 1e-3 and res.folded_faces == 0
+
+
+def test_extreme_factors_grow_the_bunny_ears():
+    """bunny_1200: cMCF factors span 2e7.  With the unit sphere's masses in the damping the solver stalled at 25 %
+    rms strain (short ears, Hausdorff 17 % of the diagonal); with the metric's masses it reaches the level of the
+    true bunny (6 % against the same lengths) and the ears grow."""
+    mesh = load_mesh(SHARED_MESHES / "bunny_1200.obj")
+    flow = cmcf(mesh)
+    res = embed(flow.sphere, flow.factors, EmbedOptions(check_intersections=False))
+    level = edge_length_error(mesh, res.edges, res.target_lengths)[0]
+    assert res.edge_error_rms < 0.5 * level
+    assert surface_distance(res.mesh, mesh).hausdorff_relative < 0.1
+    assert res.mesh.signed_volume() > 0
+
+
+def test_trust_region_accepts_only_decreasing_steps(rng):
+    sphere = icosphere(2)
+    c = np.exp(0.5 * sample_harmonic(random_factor_coefficients(rng, 4, 0.5), sphere.vertices))
+    system = EmbedSystem(sphere, 10.0, 1e-8)
+    lengths = target_edge_lengths(sphere, c, system.edges)
+    lengths *= np.sqrt(4 * np.pi) / np.sqrt(np.sum(c * sphere.area() / sphere.nvertices))
+    system.precondition(lengths)
+    history, stats = [], {"nnz": 0, "cg": 0}
+    opt = EmbedOptions(damping=10.0, min_damping=1e-3, tol=1e-6)
+    x, _ = _iterate(system, sphere.vertices.copy(), lengths, 0.0, 30, opt, history, stats)
+    assert np.all(np.diff(history) < 0)
+    # Good steps shrink μ from its start towards the floor, never below it.
+    assert 1e-3 <= system.damping < 1.0
+    # From a tiny μ with a tiny floor the first steps overshoot: the trust region rejects them and grows μ.
+    system = EmbedSystem(sphere, 1e-9, 1e-8)
+    system.precondition(lengths)
+    history, stats = [], {"nnz": 0, "cg": 0}
+    x0 = sphere.vertices + 0.2 * rng.standard_normal(sphere.vertices.shape)
+    _iterate(system, x0, lengths, 0.0, 30, EmbedOptions(damping=1e-9, min_damping=1e-9), history, stats)
+    assert stats.get("rejected", 0) > 0 and np.all(np.diff(history) < 0)
+    assert system.energy(x0, lengths, 0.0) > history[0]
+
+
+def test_metric_masses_follow_the_factors(rng):
+    sphere = icosphere(3)
+    c = np.exp(sample_harmonic(random_factor_coefficients(rng, 3, 0.6), sphere.vertices))
+    system = EmbedSystem(sphere, 1e-3, 1e-8)
+    system.set_metric(target_edge_lengths(sphere, c, system.edges))
+    # The damping's lumped masses are those of the target metric: c times the sphere's (to the one-ring average).
+    assert np.allclose(system.masses, c * system._area, rtol=0.1)
+
+
+def test_adaptive_continuation_halves_steps_with_large_strain():
+    mesh = star_surface(3, 2, 1.0, subdivisions=2)
+    flow = cmcf(mesh)
+    loose = embed(flow.sphere, flow.factors, EmbedOptions(check_intersections=False, max_log_step=10.0))
+    tight = embed(flow.sphere, flow.factors, EmbedOptions(check_intersections=False, max_log_step=10.0,
+                                                          continuation_strain=1e-4, min_step=0.1))
+    assert loose.steps == 1 and loose.continuation_retries == 0
+    assert tight.continuation_retries > 0 and tight.steps > 1
+    fixed = embed(flow.sphere, flow.factors, EmbedOptions(check_intersections=False, steps=3))
+    assert fixed.steps == 3 and fixed.continuation_retries == 0
+    level = edge_length_error(mesh, loose.edges, loose.target_lengths)[0]
+    for res in (loose, tight, fixed):
+        assert res.edge_error_rms < 0.5 * level and res.cpu_seconds > 0
+
+
+def test_harmonic_factors_are_sampled_at_the_vertices(rng):
+    sphere = icosphere(2)
+    a = random_factor_coefficients(rng, 4, 0.3)
+    expected = sample_harmonic(a, sphere.vertices)
+    rho = ConformalFactor(a)
+    for given in (rho, a, rho.to_shcoeffs()):
+        assert np.allclose(vertex_factors(sphere, given), expected)
+    assert np.array_equal(vertex_factors(sphere, expected), expected)
+    opt = EmbedOptions(check_intersections=False)
+    assert np.allclose(embed(sphere, rho, opt).mesh.vertices, embed(sphere, expected, opt).mesh.vertices)
+    with pytest.raises(InvalidArgumentError):
+        vertex_factors(sphere, np.ones(7))
+    negative = np.zeros(9)
+    negative[4] = 1.0  # ρ = Y_2,-2 alone: negative somewhere
+    with pytest.raises(NotPositiveError):
+        embed(sphere, negative)
 
 
 def test_system_sparsity_grows_linearly():
@@ -142,5 +241,9 @@ def test_invalid_input_raises():
         EmbedOptions(pressure=-1.0)
     with pytest.raises(InvalidArgumentError):
         EmbedOptions(iterations=0)
+    with pytest.raises(InvalidArgumentError):
+        EmbedOptions(min_step=0.0)
+    with pytest.raises(InvalidArgumentError):
+        EmbedOptions(min_damping=-1.0)
     with pytest.raises(InvalidArgumentError):
         embed(sphere, np.ones(sphere.nvertices), options="fast")

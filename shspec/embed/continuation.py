@@ -4,6 +4,7 @@ Growing log c linearly in t keeps every intermediate metric a conformal factor o
 changes every edge length by the same relative amount (c_i c_j)^(Δt/4) and the previous solution is a good start:
 the surface inflates a little at a time, along the way the pressure prior (see :mod:`shspec.embed.embed`) chooses,
 instead of being asked to jump to the final shape from the sphere, where folding in is as cheap as bulging out.
+:func:`~shspec.embed.embed.embed` uses the schedule's first step and then adapts the step to the strain.
 """
 
 from __future__ import annotations
