@@ -125,7 +125,8 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         + ("" if cfg["align_all"] else " (quick run: only the raw fit is aligned; nan = not aligned)")
         + ". The fits stop by "
         + ", ".join(f"{row['fit']}: {row['status']}" for row in rows)
-        + "; none is a converged exact recovery unless its error is at rounding level.")
+        + ("; every fit used its whole budget, so these are errors of unfinished fits, not of converged solutions."
+           if all(row["status"] == "max_iter" for row in rows) else "."))
     return Finding(summary, {"sh_inverse": rows}, [*figures, "history.png"], numbers)
 
 
