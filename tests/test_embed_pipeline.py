@@ -102,3 +102,22 @@ def test_render_returns_a_figure():
     assert fig.axes
     with pytest.raises(InvalidArgumentError):
         render_mesh(blob(1), up="w")
+
+
+def test_recursive_refinement_second_pass_is_not_worse():
+    """The study's Section 3.2.3 on a 162-vertex blob: fit, re-embed, fit again on the re-embedded surface's sphere."""
+    from shspec.inverse import mesh_target
+    from shspec.pipeline import RecursiveOptions, recursive_fit
+
+    target = mesh_target(blob(2), lmax=8, numeig=40, lmax_factor=4)
+    result = recursive_fit(target, options=RecursiveOptions(passes=2))
+    first, second = result.passes
+    assert result.final is second and second.sphere is not first.sphere
+    assert second.fit_residual <= first.fit_residual
+    assert second.hausdorff_relative <= first.hausdorff_relative
+    # Measured 0.54 % then 1.16 %: the second pass's metric reaches the sphere through the cMCF of a coarse
+    # re-embedded surface, accurate to ~1 %; bounded here, not improved.
+    assert first.spectral_error < 0.01 and second.spectral_error < 0.02
+    assert second.embedding.edge_error_rms < 0.01
+    with pytest.raises(InvalidArgumentError):
+        recursive_fit(target, options=RecursiveOptions(passes=0))

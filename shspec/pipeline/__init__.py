@@ -1,5 +1,8 @@
-"""End-to-end validation of the mesh path (the study's Section 2.4): spectra, factors and re-embedding side by side."""
+"""End-to-end validation of the mesh path (the study's Section 2.4): spectra, factors and re-embedding side by side;
+and the recursive fit-and-embed refinement of its Section 3.2.3."""
 
+from .recursive import RecursiveOptions, RecursiveResult, RefinementPass, recursive_fit
 from .validation import ValidationOptions, ValidationResult, validate_target, write_report
 
-__all__ = ["ValidationOptions", "ValidationResult", "validate_target", "write_report"]
+__all__ = ["RecursiveOptions", "RecursiveResult", "RefinementPass", "recursive_fit", "ValidationOptions",
+           "ValidationResult", "validate_target", "write_report"]
