@@ -52,7 +52,8 @@ def _embed(args) -> int:
     print(json.dumps({"out": str(args.out), "edge_length_error": res.edge_error_rms,
                       "edge_length_error_max": res.edge_error_max, "folded_faces": res.folded_faces,
                       "self_intersections": res.self_intersections, "steps": res.steps,
-                      "iterations": res.iterations, "success": res.success, "seconds": res.seconds}))
+                      "iterations": res.iterations, "success": res.success, "seconds": res.seconds,
+                      "cpu_seconds": res.cpu_seconds}))
     return 0 if res.success else 1
 
 
