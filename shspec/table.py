@@ -24,7 +24,7 @@ import numpy as np
 from .errors import BandLimitError, InvalidArgumentError
 from .gaunt import order_factor
 from .harmonics import check_degree, ncoeffs
-from .wigner import family_into
+from .wigner import factorial_table, family_into, family_upto_into
 
 __all__ = ["GauntTable", "build_table", "table_size", "check_limits"]
 
@@ -109,7 +109,7 @@ def table_size(lmax: int, lmax_factor: int) -> int:
 
 
 @nb.njit(cache=True, nogil=True)
-def _fill_row(l1, lmax, lmax_factor, off, values, w0, w):
+def _fill_row(l1, lmax, lmax_factor, off, values, w0, w, fh, fl, fe):
     for l2 in range(l1, min(lmax, l1 + lmax_factor) + 1):
         pos = off[l1, l2]
         jmin0 = family_into(l1, l2, 0, 0, w0)[0]
@@ -118,7 +118,11 @@ def _fill_row(l1, lmax, lmax_factor, off, values, w0, w):
             cnt = fcnt[f]
             if cnt == 0:
                 continue
-            jmin = family_into(l1, l2, fa[f], fmu2[f], w)[0]
+            # only l3 <= La is stored: stop the recursion there when it is stable to (see shspec.wigner)
+            top = fl3[f] + 2 * (cnt - 1)
+            jmin, n, ok = family_upto_into(l1, l2, fa[f], fmu2[f], top, w, fh, fl, fe)
+            if not ok:
+                jmin = family_into(l1, l2, fa[f], fmu2[f], w)[0]
             for t in range(cnt):
                 l3 = fl3[f] + 2 * t
                 pref = math.sqrt((2.0 * l1 + 1.0) * (2.0 * l2 + 1.0) * (2.0 * l3 + 1.0) * _INV_4PI)
@@ -127,11 +131,11 @@ def _fill_row(l1, lmax, lmax_factor, off, values, w0, w):
 
 
 @nb.njit(cache=True, parallel=True)
-def _fill_rows(rows, lmax, lmax_factor, off, values):
+def _fill_rows(rows, lmax, lmax_factor, off, values, fh, fl, fe):
     for r in nb.prange(rows.size):
         w0 = np.empty(2 * lmax + 1)
         w = np.empty(2 * lmax + 1)
-        _fill_row(rows[r], lmax, lmax_factor, off, values, w0, w)
+        _fill_row(rows[r], lmax, lmax_factor, off, values, w0, w, fh, fl, fe)
 
 
 def _balanced_rows(off: np.ndarray, lmax: int) -> np.ndarray:
@@ -161,8 +165,9 @@ def build_table(lmax: int, lmax_factor: int, *, progress: bool = False) -> "Gaun
     total = int(off[lmax, lmax + 1])
     values = np.empty(total)
     rows = _balanced_rows(off, lmax)
+    fact = factorial_table(4 * lmax + 2)
     if not progress:
-        _fill_rows(rows, lmax, lmax_factor, off, values)
+        _fill_rows(rows, lmax, lmax_factor, off, values, *fact)
     else:
         from tqdm.auto import tqdm
 
@@ -170,7 +175,7 @@ def build_table(lmax: int, lmax_factor: int, *, progress: bool = False) -> "Gaun
         nchunks = min(rows.size, 20)
         with tqdm(total=total, unit="val", unit_scale=True, desc=f"Gaunt table ({lmax},{lmax_factor})") as bar:
             for chunk in np.array_split(rows, nchunks):
-                _fill_rows(chunk, lmax, lmax_factor, off, values)
+                _fill_rows(chunk, lmax, lmax_factor, off, values, *fact)
                 bar.update(int(work[chunk].sum()))
     return GauntTable(lmax, lmax_factor, values)
 

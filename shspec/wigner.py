@@ -46,7 +46,8 @@ import numpy as np
 from .errors import InvalidArgumentError
 from .harmonics import MAX_DEGREE
 
-__all__ = ["wigner3j", "wigner3j_family", "family_range", "family_into", "family_into_dd"]
+__all__ = ["wigner3j", "wigner3j_family", "family_range", "family_into", "family_into_dd", "family_upto_into",
+           "factorial_table"]
 
 _HUGE = 1.0e150
 _TINY = 1.0 / _HUGE
@@ -471,6 +472,127 @@ def _normalize_dd(hi, lo, n, jmin, j2, j3, m1, sign_last):
     for t in range(n):
         hi[t], lo[t] = _dd_mul(hi[t], lo[t], ch, cl)
     return jmin, n
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Truncated families.  The Gaunt tables need a family only up to the factor band limit La, often far below
+# jmax = j2 + j3.  Started from the exact first symbol (a closed form of factorials, evaluated in double-double),
+# the forward recursion is stable through the lower forbidden region (values grow) and neutral through the
+# oscillatory one; it becomes unstable only in the upper forbidden region, where values decay.  There the truncated
+# sweep gives up and the caller falls back to the two-sided full family.
+
+_SCALE_EXP = 500  # rescaling by exact powers of two keeps track of the scale without rounding
+
+
+@nb.njit(cache=True)
+def factorial_table(nmax):
+    """n! = (hi[n] + lo[n]) · 2**exp[n] for n = 0 … nmax, hi in [0.5, 1): double-double mantissas, exact exponents."""
+    hi = np.empty(nmax + 1)
+    lo = np.empty(nmax + 1)
+    ex = np.empty(nmax + 1, dtype=np.int64)
+    h, l, e = 0.5, 0.0, 1
+    hi[0], lo[0], ex[0] = h, l, e
+    for n in range(1, nmax + 1):
+        h, l = _dd_mul_d(h, l, float(n))
+        m, k = math.frexp(h)
+        h, l = m, math.ldexp(l, -k)
+        e += k
+        hi[n], lo[n], ex[n] = h, l, e
+    return hi, lo, ex
+
+
+@nb.njit(cache=True, nogil=True)
+def _factorial_ratio_sqrt(num, den, fh, fl, fe):
+    """sqrt(Π num! / Π den!) as (mantissa, exponent of two), the mantissa rounded from double-double."""
+    h, l, e = 1.0, 0.0, 0
+    for n in num:
+        h, l = _dd_mul(h, l, fh[n], fl[n])
+        e += fe[n]
+    for n in den:
+        h, l = _dd_div(h, l, fh[n], fl[n])
+        e -= fe[n]
+    m, k = math.frexp(h)
+    h, l = m, math.ldexp(l, -k)
+    e += k
+    if e % 2 != 0:
+        h, l = 2.0 * h, 2.0 * l
+        e -= 1
+    h, l = _dd_sqrt(h, l)
+    return h + l, e // 2
+
+
+@nb.njit(cache=True, nogil=True)
+def _first_symbol(j2, j3, m2, m3, jmin, fh, fl, fe):
+    """The symbol (jmin j2 j3; m1 m2 m3) in closed form, as (signed mantissa, exponent of two)."""
+    m1 = -(m2 + m3)
+    j1 = jmin
+    if j1 == abs(j2 - j3):
+        # stretched: the largest j is the sum of the other two; (a b a+b; α β −α−β) after a column swap if needed
+        if j2 >= j3:
+            a, b, al, be = j1, j3, m1, m3
+            sign = 1 if (j1 + j2 + j3) % 2 == 0 else -1  # odd permutation (j1 j3 j2)
+        else:
+            a, b, al, be = j1, j2, m1, m2
+            sign = 1
+        if (a - b + al + be) % 2 != 0:
+            sign = -sign
+        num = (2 * a, 2 * b, a + b + al + be, a + b - al - be)
+        den = (2 * a + 2 * b + 1, a + al, a - al, b + be, b - be)
+    else:
+        # j1 = |m1|: (j1 j2 j3; j1, −j1−m3, m3), after flipping every m when m1 = −j1
+        sign = 1
+        if m1 < 0:
+            if (j1 + j2 + j3) % 2 != 0:
+                sign = -1
+            m3 = -m3
+        if (-j1 + j2 + m3) % 2 != 0:
+            sign = -sign
+        num = (2 * j1, -j1 + j2 + j3, j1 + j2 + m3, j3 - m3)
+        den = (j1 + j2 + j3 + 1, j1 - j2 + j3, j1 + j2 - j3, -j1 + j2 - m3, j3 + m3)
+    m, e = _factorial_ratio_sqrt(num, den, fh, fl, fe)
+    return sign * m, e
+
+
+@nb.njit(cache=True, nogil=True)
+def family_upto_into(j2, j3, m2, m3, jtop, out, fh, fl, fe):
+    """The family from jmin up to ``jtop`` (< jmax) by the forward recursion from the exact first symbol.
+
+    Returns (jmin, n, ok): ``out[0:n]`` holds w(jmin … jtop) when ok; ok is False when the range reaches the upper
+    forbidden region (or jmin = 0, where the recursion has no two-term start), and the caller must use
+    :func:`family_into`.  ``fh, fl, fe`` is :func:`factorial_table` of at least j2 + j3 + jtop + 1.
+    """
+    jmin, jmax = family_range(j2, j3, m2, m3)
+    if jmin > jmax or jmin == 0 or jtop >= jmax or jtop < jmin:
+        return jmin, 0, False
+    m1 = -(m2 + m3)
+    n = jtop - jmin + 1
+    out[0] = 1.0
+    if n == 1:
+        mant, e = _first_symbol(j2, j3, m2, m3, jmin, fh, fl, fe)
+        out[0] = math.ldexp(mant, e)
+        return jmin, 1, True
+    a_next = _coef_a(jmin + 1, j2, j3, m1)
+    out[1] = -_coef_b(jmin, j2, j3, m1, m2, m3) / (jmin * a_next)
+    scale = 0
+    a_j = a_next
+    for p in range(1, n - 1):
+        j = jmin + p
+        a_next = _coef_a(j + 1, j2, j3, m1)
+        b = _coef_b(j, j2, j3, m1, m2, m3)
+        out[p + 1] = -(b * out[p] + (j + 1) * a_j * out[p - 1]) / (j * a_next)
+        # real characteristic roots with decaying values: the upper forbidden region, unstable forwards
+        if b * b >= 4.0 * j * (j + 1) * a_j * a_next and abs(out[p + 1]) < abs(out[p]):
+            return jmin, 0, False
+        if abs(out[p + 1]) > _HUGE:
+            for t in range(p + 2):
+                out[t] = math.ldexp(out[t], -_SCALE_EXP)
+            scale += 1
+        a_j = a_next
+    mant, e = _first_symbol(j2, j3, m2, m3, jmin, fh, fl, fe)
+    e += scale * _SCALE_EXP
+    for t in range(n):
+        out[t] = math.ldexp(out[t] * mant, e)
+    return jmin, n, True
 
 
 def _check_int(name, value):

@@ -28,7 +28,7 @@ def test_round_trip_and_metadata(tmp_path):
 def test_larger_table_serves_smaller(tmp_path):
     get_table(12, 8, cache_dir=tmp_path)
     small = load_table(9, 5, tmp_path)
-    np.testing.assert_array_equal(small.values, build_table(9, 5).values)
+    np.testing.assert_allclose(small.values, build_table(9, 5).values, rtol=0, atol=2e-15)  # other La: round-off
     assert not table_path(9, 5, tmp_path).exists()
     with pytest.raises(FileNotFoundError):
         load_table(13, 5, tmp_path)

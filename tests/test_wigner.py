@@ -327,3 +327,32 @@ def test_invalid_family_arguments_raise(args):
 def test_numpy_integers_accepted():
     assert wigner3j(*np.array([2, 2, 2, 0, 0, 0])) == pytest.approx(-math.sqrt(2.0 / 35.0), rel=1e-15)
     assert wigner3j_family(np.int32(1), np.int64(1), 0, 0)[1] == pytest.approx([-1 / math.sqrt(3), 0.0, math.sqrt(2 / 15)])
+
+
+def test_truncated_forward_family_matches_double_double():
+    """family_upto_into: exact first symbol + forward recursion, up to jtop; it must refuse the unstable region."""
+    from shspec.wigner import factorial_table, family_into_dd, family_range, family_upto_into
+
+    fh, fl, fe = factorial_table(400)
+    rng = np.random.default_rng(7)
+    accepted = refused = 0
+    worst = 0.0
+    for _ in range(3000):
+        j2, j3 = (int(x) for x in rng.integers(0, 80, 2))
+        m2, m3 = int(rng.integers(-j2, j2 + 1)), int(rng.integers(-j3, j3 + 1))
+        jmin, jmax = family_range(j2, j3, m2, m3)
+        if jmin > jmax:
+            continue
+        jtop = int(rng.integers(jmin, jmax + 1))
+        out = np.zeros(jmax - jmin + 1)
+        _, n, ok = family_upto_into(j2, j3, m2, m3, jtop, out, fh, fl, fe)
+        if not ok:
+            refused += 1
+            continue
+        accepted += 1
+        hi, lo = np.zeros(jmax - jmin + 1), np.zeros(jmax - jmin + 1)
+        family_into_dd(j2, j3, m2, m3, hi, lo)
+        assert n == jtop - jmin + 1
+        worst = max(worst, np.max(np.abs(out[:n] - hi[:n])) / np.max(np.abs(hi)))
+    assert worst <= 2e-14
+    assert accepted > 1000 and refused > 100  # both paths exercised
