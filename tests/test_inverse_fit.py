@@ -95,6 +95,32 @@ def test_schedule_raises_degree_and_breaks_parity(small):
     assert np.all(r.best.params[1:4] == 0)  # the Möbius gauge
 
 
+def test_degree_ramp_raises_degree_and_count_together():
+    from shspec.inverse import degree_ramp
+
+    stages = degree_ramp(120, 6)
+    assert [(s.lmax_factor, s.numeig) for s in stages] == [(2, 16), (3, 25), (4, 36), (5, 49), (6, 64), (6, 100),
+                                                           (6, 120)]
+    assert [(s.lmax_factor, s.numeig) for s in degree_ramp(20, 6)] == [(2, 16), (6, 20)]
+    FitOptions(schedule=degree_ramp(300, 15))  # degrees never decrease
+
+
+def test_basin_hops_only_lower_the_energy_and_keep_the_gauge(small):
+    from shspec.inverse.schedule import _block_moves
+
+    target, model = small
+    sched = (Stage(2, 9), Stage(6))
+    plain = fit(target, model, FitOptions(starts=1, max_iter=4, schedule=sched))
+    hopped = fit(target, model, FitOptions(starts=1, max_iter=4, schedule=sched, basin_hops=1, hop_iter=2))
+    assert hopped.best.energy <= plain.best.energy
+    assert hopped.best.iterations >= plain.best.iterations
+    assert np.all(hopped.best.params[1:4] == 0)
+    # Every move keeps the per-degree power (a rotation invariant) and the gauge.
+    for q in _block_moves(plain.best.params, 6):
+        assert np.allclose(power_spectrum(q), power_spectrum(plain.best.params))
+        assert np.all(q[1:4] == 0) and q[0] == plain.best.params[0]
+
+
 @pytest.mark.parametrize("optimizer", ["lm", "lbfgs", "gd"])
 def test_resume_from_checkpoint_equals_uninterrupted_run(small, tmp_path, monkeypatch, optimizer):
     target, model = small

@@ -131,6 +131,15 @@ class FitOptions:
     lm_damping : float
         Initial Levenberg–Marquardt damping μ (relative to diag(JᵀJ)); large values make the first steps short
         gradient-like steps.
+    basin_hops : int
+        After the last stage, while the relative residual is above success_tol, up to this many basin hops (0:
+        none): power-preserving moves of one degree block (its mirror image, the sign of an odd block) each get
+        ``hop_iter`` iterations, and the first that lowers the energy is refitted to convergence.  Not checkpointed
+        (a run resumed after the last stage repeats it).  On the blob with :func:`~shspec.inverse.degree_ramp`,
+        ``basin_hops=3`` raised the successes from 2 to 5 of 8 starts (median CPU time per start 16 s → 35 s);
+        more hops did not help the three other starts.  Default 0: measured on that one problem only.
+    hop_iter : int
+        Iterations given to each move of a basin hop.
     distinct_tol : float
         Two converged starts are the same local solution when their energies agree to this relative tolerance
         and their per-degree powers (rotation invariant) agree to it relative to the total power.
@@ -158,6 +167,8 @@ class FitOptions:
     energy_tol: float = 1e-6
     lbfgs_memory: int = 20
     lm_damping: float = 1e-3
+    basin_hops: int = 0
+    hop_iter: int = 30
     distinct_tol: float = 1e-4
     success_tol: float = 1e-10
     checkpoint_every: int = 0
@@ -185,6 +196,8 @@ class FitOptions:
             _positive_float(getattr(self, name), name)
         _positive_int(self.lbfgs_memory, "lbfgs_memory")
         _positive_float(self.lm_damping, "lm_damping")
+        _positive_int(self.basin_hops, "basin_hops", minimum=0)
+        _positive_int(self.hop_iter, "hop_iter")
         _positive_int(self.checkpoint_every, "checkpoint_every", minimum=0)
         if self.checkpoint_every and not self.checkpoint_path:
             raise InvalidArgumentError("checkpoint_every > 0 needs a checkpoint_path")
