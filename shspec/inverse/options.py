@@ -133,11 +133,12 @@ class FitOptions:
         gradient-like steps.
     basin_hops : int
         After the last stage, while the relative residual is above success_tol, up to this many basin hops (0:
-        none): power-preserving moves of one degree block (its mirror image, the sign of an odd block) each get
+        none): power-preserving moves of one degree block (half-turns about the axes, signs of odd blocks) each get
         ``hop_iter`` iterations, and the first that lowers the energy is refitted to convergence.  Not checkpointed
         (a run resumed after the last stage repeats it).  On the blob with :func:`~shspec.inverse.degree_ramp`,
-        ``basin_hops=3`` raised the successes from 2 to 5 of 8 starts (median CPU time per start 16 s → 35 s);
-        more hops did not help the three other starts.  Default 0: measured on that one problem only.
+        ``basin_hops=4`` (hop_iter 15) raised the successes from 2 to 7 of 8 starts (median CPU time per start
+        16 s → 34 s on a loaded machine; ``basin_hops=3`` with hop_iter 30: 6 of 8, 41 s).  Default 0: measured
+        on that one problem only, and it lengthens every failed start.
     hop_iter : int
         Iterations given to each move of a basin hop.
     distinct_tol : float
@@ -168,7 +169,7 @@ class FitOptions:
     lbfgs_memory: int = 20
     lm_damping: float = 1e-3
     basin_hops: int = 0
-    hop_iter: int = 30
+    hop_iter: int = 15
     distinct_tol: float = 1e-4
     success_tol: float = 1e-10
     checkpoint_every: int = 0

@@ -64,7 +64,7 @@ def degree_ramp(numeig: int, lmax_factor: int) -> tuple[Stage, ...]:
     La = 6 and 120 eigenvalues: 2:16, 3:25, 4:36, 5:49, 6:64, 6:100, 6:120.  On the blob (Lb = 20, La = 6, 120
     eigenvalues, 8 starts of seed 0, LM, max_iter 150, one BLAS thread) it succeeded as often as :func:`numeig_ramp`
     (2 of 8) at about 40 % of its CPU time per start (median 16 s against 37–41 s for the ramp's failed starts);
-    with ``basin_hops=3`` it succeeded on 5 of 8 (median 35 s CPU per start).  Its failed starts mostly share one
+    with ``basin_hops=4`` it succeeded on 7 of 8 (median 34 s CPU per start).  Its failed starts mostly share one
     local minimum (6 of 8 without hops), which the block moves of the basin hops leave.
 
     Parameters
@@ -339,22 +339,23 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
 
 
 def _block_moves(params: np.ndarray, la: int) -> list:
-    """Power-preserving moves of one degree block: the mirror z ↦ −z of block l (every l ≥ 2), and the sign of
-    block l for odd l but the highest (flipping every odd block is the antipodal map, an isometry)."""
-    from .align import mirror_coefficients
+    """Power-preserving moves of one degree block l ≥ 2: its half-turns about the z, y and x axes, and for odd l
+    also these composed with the sign −1 and the sign alone (the point reflection of that block only).  For even l
+    the mirror z ↦ −z of the block is its half-turn about z; for odd l the negated one."""
+    from .align import rotate_coefficients
 
     l_all = degrees(la)
-    odd = [l for l in range(3, la + 1, 2)]
     moves = []
     for l in range(2, la + 1):
-        q = params.copy()
         sel = l_all == l
-        q[:l_all.size][sel] = mirror_coefficients(params[:l_all.size])[sel]
-        moves.append(q)
-    for l in odd[:-1]:
-        q = params.copy()
-        q[:l_all.size][l_all == l] *= -1.0
-        moves.append(q)
+        sub = np.where(sel, params[:l_all.size], 0.0)
+        turns = [rotate_coefficients(sub, np.array(ang)) for ang in ((np.pi, 0, 0), (0, np.pi, 0), (np.pi, np.pi, 0))]
+        if l % 2:
+            turns += [-t for t in turns] + [-sub]
+        for t in turns:
+            q = params.copy()
+            q[:l_all.size][sel] = t[sel]
+            moves.append(q)
     return moves
 
 
@@ -362,9 +363,9 @@ def _basin_hop(problem: FitProblem, progress: StartProgress, status: str) -> str
     """Leave a local minimum by power-preserving block moves (see :attr:`FitOptions.basin_hops`).
 
     The failed fits of the blob end in local minima whose per-degree power is already right (to ~1e-4) while the
-    degree blocks are wrongly placed relative to each other.  A move replaces one block by its mirror image (or an
-    odd block by its negative), keeping every power; the moves are tried in order with ``hop_iter`` iterations of
-    the last stage each, the first whose energy ends below the current one is refitted to convergence, and the
+    degree blocks are wrongly placed relative to each other.  A move turns one block by a half-turn about a
+    coordinate axis (odd blocks also negated), keeping every power; the moves are tried in the order of their
+    energy before any refit, with ``hop_iter`` iterations of the last stage each, the first whose energy ends below the current one is refitted to convergence, and the
     hops stop at success, after ``basin_hops`` accepted moves, or when no move lowers the energy.  Deterministic.
     """
     opt = problem.options
@@ -383,9 +384,18 @@ def _basin_hop(problem: FitProblem, progress: StartProgress, status: str) -> str
             hist.append((s, optimizer.ev.energy, optimizer.ev.relative_residual))
         return optimizer, obj, hist
 
+    def energy(q):
+        obj = problem.objective(s, q)
+        try:
+            return obj.evaluate(obj.initial()).energy
+        except NotPositiveError:
+            return np.inf
+
     for _ in range(opt.basin_hops):
         accepted = False
-        for q in _block_moves(progress.params, la):
+        moves = _block_moves(progress.params, la)
+        # Cheapest first: one eigensolve per move, then the short refits in order of the moved energy.
+        for q in [moves[k] for k in np.argsort([energy(q) for q in moves], kind="stable")]:
             out = run(q, opt.hop_iter)
             if out is None or out[0].ev.energy >= progress.energy:
                 continue
