@@ -198,3 +198,15 @@ def test_cli_fit_writes_summary_result_and_figures(tmp_path):
     for name in ("factors.png", "history.png", "residuals.png", "result.h5"):
         assert (out / name).stat().st_size > 0
     assert main(["fit", "--target", "nonsense", "--out", str(out), "--quiet"]) == 1
+
+
+def test_cli_degree_ramp_with_basin_hops(tmp_path):
+    import json
+
+    from shspec.cli import main
+
+    assert main(["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "1",
+                 "--max-iter", "5", "--schedule", "degree-ramp", "--basin-hops", "1", "--out", str(tmp_path),
+                 "--quiet"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert len(summary["starts"]) == 1 and summary["relative_residual"] < 1e-2

@@ -28,7 +28,11 @@ def register(subparsers) -> None:
     p.add_argument("--schedule", default="ramp",
                    help="stages: degrees '2,4,8,15', degree:numeig pairs '6:16,6:64,6:120', 'ramp' (numeig "
                    "16, 36, 64, ... at full degree; the default: it succeeded where one stage did not, see "
-                   "benchmarks/results/bench_inverse.json) or 'none' (one stage)")
+                   "benchmarks/results/bench_inverse.json), 'degree-ramp' (degree and numeig raised together; with "
+                   "--basin-hops 4 it made 7 of 8 blob starts succeed) or 'none' (one stage)")
+    p.add_argument("--basin-hops", type=int, default=0,
+                   help="after the last stage, up to N accepted power-preserving moves of single degree blocks "
+                   "(half-turns, sign flips) to leave local minima (default 0; see FitOptions.basin_hops)")
     p.add_argument("--reg", type=float, default=0.0, help="bi-Laplacian regularization weight R (default 0)")
     p.add_argument("--starts", type=int, default=4, help="random starts (default 4)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -50,14 +54,16 @@ def register(subparsers) -> None:
     p.set_defaults(func=_fit)
 
 
-def _schedule(text, numeig: int):
+def _schedule(text, numeig: int, lmax_factor: int):
     from ..inverse.options import parse_schedule
-    from ..inverse.schedule import numeig_ramp
+    from ..inverse.schedule import degree_ramp, numeig_ramp
 
     if text == "none":
         return ()
     if text == "ramp":
         return numeig_ramp(numeig)
+    if text == "degree-ramp":
+        return degree_ramp(numeig, lmax_factor)
     return parse_schedule(text)
 
 
@@ -83,8 +89,8 @@ def _fit(args) -> int:
     target = parse_target(args.target, lmax=args.lmax, numeig=args.numeig, lmax_factor=args.lmax_factor,
                           source=args.source, subdivisions=args.subdivisions)
     options = FitOptions(optimizer=args.optimizer, weights=args.weights, reg=args.reg, area=args.area,
-                         schedule=_schedule(args.schedule, target.numeig), starts=args.starts, seed=args.seed,
-                         start_amplitude=args.amplitude, max_iter=args.max_iter,
+                         schedule=_schedule(args.schedule, target.numeig, args.lmax_factor), starts=args.starts, seed=args.seed,
+                         start_amplitude=args.amplitude, max_iter=args.max_iter, basin_hops=args.basin_hops,
                          checkpoint_every=args.checkpoint_every,
                          checkpoint_path=str(out / "checkpoint.h5") if args.checkpoint_every or args.resume else None,
                          progress=not args.quiet)
