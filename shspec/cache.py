@@ -29,6 +29,7 @@ import re
 import tempfile
 import time
 import warnings
+from collections import OrderedDict
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -140,7 +141,30 @@ def save_table(table: GauntTable, directory: str | os.PathLike | None = None, *,
     return path
 
 
+#: Tables read in this process, by (path, modification time, size): a file is read and validated once until it
+#: changes; the few most recent are kept (with their assembly plans, which cost as much as the read).
+_MEMORY: "OrderedDict[tuple, GauntTable]" = OrderedDict()
+_MEMORY_ENTRIES = 4
+
+
 def _read(path: Path, lmax: int | None = None, lmax_factor: int | None = None) -> GauntTable:
+    """The validated table in ``path``, from memory when the file has not changed since it was read."""
+    stat = path.stat()
+    key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+    table = _MEMORY.get(key)
+    if table is None:
+        table = _read_file(path)
+        _MEMORY[key] = table
+        while len(_MEMORY) > _MEMORY_ENTRIES:
+            _MEMORY.popitem(last=False)
+    _MEMORY.move_to_end(key)
+    if lmax is not None and (table.lmax, table.lmax_factor) != (lmax, lmax_factor):
+        raise TableMismatchError(f"{path} holds the table ({table.lmax},{table.lmax_factor}), not "
+                                 f"({lmax},{lmax_factor})")
+    return table
+
+
+def _read_file(path: Path) -> GauntTable:
     """Read and fully validate one table file; raise CorruptTableError / TableMismatchError on any defect."""
     try:
         f = h5py.File(path, "r")
@@ -164,8 +188,6 @@ def _read(path: Path, lmax: int | None = None, lmax_factor: int | None = None) -
             count, checksum = int(attrs["count"]), str(attrs["checksum"])
         except (KeyError, TypeError, ValueError) as exc:
             raise CorruptTableError(f"{path} lacks a required attribute: {exc}") from exc
-        if lmax is not None and (have_b, have_a) != (lmax, lmax_factor):
-            raise TableMismatchError(f"{path} holds the table ({have_b},{have_a}), not ({lmax},{lmax_factor})")
         expected = table_size(have_b, have_a)
         if count != expected or "values" not in f or f["values"].shape != (expected,):
             raise CorruptTableError(f"{path} should hold {expected} values for ({have_b},{have_a}); "
@@ -179,6 +201,7 @@ def _read(path: Path, lmax: int | None = None, lmax_factor: int | None = None) -
     if _checksum(values) != checksum:
         raise CorruptTableError(f"{path} fails its checksum: the file is corrupt; rebuild it (precompute --force)")
     meta = {k: (v.item() if hasattr(v, "item") else v) for k, v in attrs.items()}
+    values.setflags(write=False)  # shared by every caller that loads this file
     return GauntTable(have_b, have_a, values, path=path, metadata=meta)
 
 
