@@ -33,7 +33,7 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 from shspec import HarmonicModel, __version__  # noqa: E402
 from shspec.harmonics import degrees  # noqa: E402
 from shspec.inverse import (FitOptions, align, blob_factor, fit, harmonic_target, mesh_target,  # noqa: E402
-                            numeig_ramp)
+                            degree_ramp, numeig_ramp)
 from shspec.inverse import plots  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -59,7 +59,7 @@ def _summary(result, truth=None):
     return out
 
 
-_SECTIONS = ("blob", "optimizers", "study", "bunny")
+_SECTIONS = ("blob", "blob_hops", "optimizers", "study", "bunny")
 
 
 def _save(report):
@@ -87,6 +87,15 @@ def bench_blob(report, starts):
             fig = plots.plot_history(result)
             fig.savefig(FIGURES / f"blob_history_{name}.png", dpi=100)
             plt.close(fig)
+
+
+def bench_blob_hops(report, starts):
+    """The blob with the degree ramp and basin hops (4 power-preserving block moves), the escape from local minima."""
+    target = harmonic_target(blob_factor(), 20, 120)
+    result = fit(target, HarmonicModel(20, 6), FitOptions(starts=starts, schedule=degree_ramp(120, 6), max_iter=150,
+                                                         basin_hops=4, hop_iter=15))
+    report["blob_hops"] = {"degree_ramp_hops4": _summary(result, target.truth)}
+    _save(report)
 
 
 def _random_centred(seed, la, amp):
@@ -188,6 +197,8 @@ def main(argv=None):
         t0 = time.perf_counter()
         if "blob" in sections:
             bench_blob(report, 4 if args.quick else 8)
+        if "blob_hops" in sections:
+            bench_blob_hops(report, 4 if args.quick else 8)
         if "optimizers" in sections:
             bench_optimizers(report, 200 if args.quick else 1000)
         if "study" in sections:
