@@ -25,14 +25,14 @@ def register(subparsers) -> None:
     p.add_argument("--lmax", type=int, default=30, help="basis band limit Lb (default 30)")
     p.add_argument("--lmax-factor", type=int, default=15, help="factor band limit La (default 15)")
     p.add_argument("--numeig", type=int, default=256, help="eigenvalues matched, lambda_0 = 0 included (default 256)")
-    p.add_argument("--schedule", default="ramp",
-                   help="stages: degrees '2,4,8,15', degree:numeig pairs '6:16,6:64,6:120', 'ramp' (numeig "
-                   "16, 36, 64, ... at full degree; the default: it succeeded where one stage did not, see "
-                   "benchmarks/results/bench_inverse.json), 'degree-ramp' (degree and numeig raised together; with "
-                   "--basin-hops 4 it made 7 of 8 blob starts succeed) or 'none' (one stage)")
-    p.add_argument("--basin-hops", type=int, default=0,
+    p.add_argument("--schedule", default="degree-ramp",
+                   help="stages: degrees '2,4,8,15', degree:numeig pairs '6:16,6:64,6:120', 'degree-ramp' (degree "
+                   "and numeig raised together; the default: with --basin-hops 4 it made 7 of 8 blob starts "
+                   "succeed, see benchmarks/results/bench_inverse.json), 'ramp' (numeig 16, 36, 64, ... at full "
+                   "degree: 2 of 8) or 'none' (one stage: 0 of 8)")
+    p.add_argument("--basin-hops", type=int, default=4,
                    help="after the last stage, up to N accepted power-preserving moves of single degree blocks "
-                   "(half-turns, sign flips) to leave local minima (default 0; see FitOptions.basin_hops)")
+                   "(half-turns, sign flips) to leave local minima (default 4; 0 turns them off)")
     p.add_argument("--reg", type=float, default=0.0, help="bi-Laplacian regularization weight R (default 0)")
     p.add_argument("--starts", type=int, default=4, help="random starts (default 4)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
