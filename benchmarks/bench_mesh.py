@@ -25,7 +25,9 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+from pathlib import Path
+
+from common import cpu_model  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy  # noqa: E402
@@ -55,15 +57,7 @@ def _best(fn, repeat):
 
 
 def _machine():
-    cpu = platform.processor()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {"cpu": cpu, "logical_cpus": os.cpu_count(), "threads": 1, "python": platform.python_version(),
+    return {"cpu": cpu_model(), "logical_cpus": os.cpu_count(), "threads": 1, "python": platform.python_version(),
             "numpy": np.__version__, "scipy": scipy.__version__, "lapy": lapy.__version__,
             "platform": platform.platform(), "load_average_at_start": os.getloadavg()}
 

@@ -27,6 +27,8 @@ import platform
 import time
 from pathlib import Path
 
+from common import cpu_model
+
 import numba as nb
 import numpy as np
 import pywigxjpf as wx
@@ -55,14 +57,7 @@ OUT = Path(__file__).resolve().parent / "results" / "wigner_accuracy.json"
 
 
 def machine():
-    cpu = "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    cpu = cpu_model()
 
     def version(name):
         try:
