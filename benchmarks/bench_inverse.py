@@ -31,9 +31,8 @@ import numpy as np  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 from shspec import HarmonicModel, __version__  # noqa: E402
-from shspec.harmonics import degrees  # noqa: E402
 from shspec.inverse import (FitOptions, align, blob_factor, fit, harmonic_target, mesh_target,  # noqa: E402
-                            degree_ramp, numeig_ramp)
+                            degree_ramp, numeig_ramp, random_centred_coefficients)
 from shspec.inverse import plots  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -98,17 +97,9 @@ def bench_blob_hops(report, starts):
     _save(report)
 
 
-def _random_centred(seed, la, amp):
-    l = degrees(la)
-    rng = np.random.default_rng([99, seed])
-    a = np.zeros(l.size)
-    a[0] = np.sqrt(4 * np.pi)
-    a[l >= 2] = (amp * a[0] / np.sqrt(2 * l + 1) / np.maximum(l, 1) * rng.standard_normal(l.size))[l >= 2]
-    return a
-
 
 def bench_optimizers(report, budget):
-    truth = _random_centred(1, 4, 0.15)
+    truth = random_centred_coefficients(1, 4, 0.15)
     target = harmonic_target(truth, 12, 49)
     model = HarmonicModel(12, 4)
     section = {"setting": "Lb=12, La=4, 49 eigenvalues, random centred rho (seed 1), start seed 1, one start"}

@@ -14,28 +14,18 @@ import pytest
 
 from shspec import HarmonicModel
 from shspec.cli import main
-from shspec.harmonics import degrees
 from shspec.inverse import (FitOptions, Stage, align, blob_factor, fit, harmonic_target, mirror_coefficients,
-                            power_spectrum)
+                            power_spectrum, random_centred_coefficients)
 from shspec.inverse import optimize as optimize_module
 from shspec.inverse.energy import Objective, eigenvalue_weights, harmonic_free_indices
 from shspec.inverse.optimize import make_optimizer
 
 
-def _random_centred(seed, la, amp):
-    """Band-limited random ρ with a_1m = 0, mean 1, per-degree RMS ∝ amp/l."""
-    l = degrees(la)
-    rng = np.random.default_rng([99, seed])
-    a = np.zeros(l.size)
-    a[0] = np.sqrt(4 * np.pi)
-    a[l >= 2] = (amp * a[0] / np.sqrt(2 * l + 1) / np.maximum(l, 1) * rng.standard_normal(l.size))[l >= 2]
-    return a
-
 
 @pytest.fixture(scope="module")
 def recovered():
     """Lb = 20, La = 4, 120 eigenvalues; the best of three symmetry-broken starts."""
-    truth = _random_centred(1, 4, 0.15)
+    truth = random_centred_coefficients(1, 4, 0.15)
     target = harmonic_target(truth, 20, 120)
     result = fit(target, HarmonicModel(20, 4), FitOptions(starts=3, seed=1))
     return truth, target, result
@@ -151,7 +141,7 @@ def test_resume_from_checkpoint_equals_uninterrupted_run(small, tmp_path, monkey
 
 def test_positivity_safeguard_never_crashes():
     model = HarmonicModel(8, 4)
-    target = harmonic_target(_random_centred(2, 4, 0.4), 8, 20).eigenvalues
+    target = harmonic_target(random_centred_coefficients(2, 4, 0.4), 8, 20).eigenvalues
     start = np.zeros(25)
     start[0] = np.sqrt(4 * np.pi)
     start[6] = 1.1  # a_20 close to making ρ negative at the poles

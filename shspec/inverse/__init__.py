@@ -12,11 +12,11 @@ from .energy import Objective, eigenvalue_weights, relative_residual
 from .multistart import distinct_solutions, fit
 from .options import FitOptions, FitResult, Stage, StartResult, parse_schedule
 from .schedule import degree_ramp, numeig_ramp
-from .targets import (BLOB_HARMONIC, Target, blob_factor, estimate_area, harmonic_target, mesh_target, parse_target,
+from .targets import (BLOB_HARMONIC, Target, blob_factor, random_centred_coefficients, estimate_area, harmonic_target, mesh_target, parse_target,
                       read_spectrum, spectrum_target)
 
 __all__ = ["Alignment", "align", "mirror_coefficients", "power_spectrum", "rotate_coefficients",
            "load_result_summary", "save_result", "Objective", "eigenvalue_weights", "relative_residual",
            "distinct_solutions", "fit", "FitOptions", "FitResult", "Stage", "StartResult", "parse_schedule",
-           "numeig_ramp", "degree_ramp", "BLOB_HARMONIC", "Target", "blob_factor", "estimate_area", "harmonic_target",
+           "numeig_ramp", "degree_ramp", "BLOB_HARMONIC", "Target", "blob_factor", "random_centred_coefficients", "estimate_area", "harmonic_target",
            "mesh_target", "parse_target", "read_spectrum", "spectrum_target"]

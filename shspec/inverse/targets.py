@@ -20,9 +20,9 @@ import numpy as np
 
 from ..errors import InvalidArgumentError
 from ..factor import ConformalFactor
-from ..harmonics import flat_index, ncoeffs
+from ..harmonics import check_degree, degrees, flat_index, ncoeffs
 
-__all__ = ["BLOB_HARMONIC", "blob_factor", "Target", "harmonic_target", "mesh_target", "spectrum_target",
+__all__ = ["BLOB_HARMONIC", "blob_factor", "random_centred_coefficients", "Target", "harmonic_target", "mesh_target", "spectrum_target",
            "read_spectrum", "estimate_area", "parse_target", "TARGET_SOURCES"]
 
 #: The built-in harmonic blob: ρ = Σ a_lm Y_lm with these coefficients, (l, m) -> a_lm, mean value 1 (area 4π).
@@ -105,6 +105,20 @@ class Target:
     def area_estimate(self) -> float:
         """The true area if known, else Weyl's estimate from the spectrum (:func:`estimate_area`)."""
         return self.area if self.area is not None else estimate_area(self.eigenvalues)
+
+
+def random_centred_coefficients(seed: int, lmax_factor: int, amplitude: float) -> np.ndarray:
+    """Coefficients (ncoeffs(La),) of a random band-limited ρ with mean 1 and a_1m = 0 (the Möbius-centred gauge).
+
+    Degrees l >= 2 have per-coefficient standard deviation amplitude·√(4π)/(√(2l+1)·l), so the RMS of each degree
+    falls like amplitude/l; reproducible from ``seed``.  Positivity is not checked: keep ``amplitude`` modest.
+    """
+    l = degrees(check_degree(lmax_factor, "lmax_factor"))
+    rng = np.random.default_rng([99, int(seed)])
+    a = np.zeros(l.size)
+    a[0] = np.sqrt(4 * np.pi)
+    a[l >= 2] = (amplitude * a[0] / np.sqrt(2 * l + 1) / np.maximum(l, 1) * rng.standard_normal(l.size))[l >= 2]
+    return a
 
 
 def estimate_area(eigenvalues) -> float:
