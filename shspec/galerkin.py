@@ -198,8 +198,6 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
     factor = as_factor(rho)
     la = factor.lmax if lmax_factor is None else check_degree(lmax_factor, "lmax_factor")
     lmax = check_degree(lmax, "lmax", minimum=1, maximum=400)
-    if la > 2 * lmax:
-        if np.any(factor.truncated(la).coefficients[ncoeffs(2 * lmax):] != 0):
-            la = 2 * lmax  # degrees above 2·Lb do not couple basis functions
+    # degrees above 2·Lb do not couple two basis functions: dropping them changes nothing
     model = HarmonicModel(lmax, min(la, 2 * lmax), table=table, cache_dir=cache_dir, build=build)
     return model.spectrum(factor.truncated(model.lmax_factor), k)
