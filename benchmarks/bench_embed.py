@@ -19,7 +19,6 @@ import platform
 import time
 from pathlib import Path
 
-import numpy as np
 import trimesh
 
 from shspec.embed import edge_length_error, embed, surface_distance
