@@ -38,11 +38,11 @@ import scipy.linalg
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import REPO, load_average, machine_info, side_by_side, summarize, threads, timed, write_json  # noqa: E402
 
-from shspec.factor import ConformalFactor  # noqa: E402
-from shspec.galerkin import HarmonicModel, _schur_scaled_upper  # noqa: E402
-from shspec.grid import evaluate_on_grid, glq_grid  # noqa: E402
-from shspec.harmonics import degree_order, degrees  # noqa: E402
-from shspec.table import build_table  # noqa: E402
+from shspec.sphere.factor import ConformalFactor  # noqa: E402
+from shspec.galerkin.solver import HarmonicModel, _schur_scaled_upper  # noqa: E402
+from shspec.sphere.grid import evaluate_on_grid, glq_grid  # noqa: E402
+from shspec.sphere.harmonics import degree_order, degrees  # noqa: E402
+from shspec.gaunt.build import build_table  # noqa: E402
 
 CASES = [(20, 10, 120, 7), (30, 15, 256, 5), (60, 30, 500, 3)]  # (Lb, La, k, repeats)
 THREADS = (1, 2)

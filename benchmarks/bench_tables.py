@@ -2,7 +2,7 @@
 
 For (Lb, La) = (20,10), (30,15), (30,30), (60,30), timed side by side (interleaved repeats) on 1 and 2 threads:
 
-* ``shspec``       — :func:`shspec.table.build_table`.
+* ``shspec``       — :func:`shspec.gaunt.build.build_table`.
 * ``peer_fused``   — the same table, with every 3j family computed by SHTOOLS' Fortran ``Wigner3j`` (the routine
   behind ``pyshtools.utils.Wigner3j``), called from a numba loop through ctypes (the f2py wrapper ``pywigner3j_``
   of the pyshtools extension module: explicit-shape arguments passed by reference), and the product
@@ -16,7 +16,7 @@ For (Lb, La) = (20,10), (30,15), (30,30), (60,30), timed side by side (interleav
 All peers produce exactly shspec's value array (same layout), checked elementwise, and a sample of real Gaunt
 coefficients G_ijk read from the peer's values is checked against :func:`shspec.real_gaunt` (to 1e-12).
 Also: sympy's exact ``real_gaunt`` for every G_ijk at Lb = La = 4, the bare Schulten–Gordon recursion
-(:func:`shspec.wigner.family_into` over every family the (60,30) table needs, one core), bytes on disk, peak memory.
+(:func:`shspec.gaunt.wigner.family_into` over every family the (60,30) table needs, one core), bytes on disk, peak memory.
 
 Writes benchmarks/results/bench_tables.json.  Run:  python benchmarks/bench_tables.py   (~3–5 minutes)
 """
@@ -39,10 +39,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import load_average, machine_info, peak_memory, side_by_side, summarize, threads, timed, write_json  # noqa: E402
 
 from shspec import real_gaunt  # noqa: E402
-from shspec.cache import save_table  # noqa: E402
-from shspec.harmonics import degree_order  # noqa: E402
-from shspec.table import GauntTable, _balanced_rows, _block_offsets, _family_count, build_table  # noqa: E402
-from shspec.wigner import family_into  # noqa: E402
+from shspec.gaunt.cache import save_table  # noqa: E402
+from shspec.sphere.harmonics import degree_order  # noqa: E402
+from shspec.gaunt.build import build_table  # noqa: E402
+from shspec.gaunt.table import GauntTable, _balanced_rows, _block_offsets, _family_count  # noqa: E402
+from shspec.gaunt.wigner import family_into  # noqa: E402
 
 CASES = [(20, 10, 7), (30, 15, 7), (30, 30, 5), (60, 30, 3)]  # (Lb, La, repeats)
 THREADS = (1, 2)
@@ -355,7 +356,7 @@ def main():
         nv, nf, _ = _bare_recursion(lb, la)
     nstored = int(_block_offsets(lb, la)[lb, lb + 1])
     out["bare_recursion_60_30"] = {
-        "what": "shspec.wigner.family_into over every family build_table(60,30) computes (incl. the (0 0 0) ones), "
+        "what": "shspec.gaunt.wigner.family_into over every family build_table(60,30) computes (incl. the (0 0 0) ones), "
                 "one core, results discarded; interleaved with the full build",
         "families": int(nf), "threej_values_computed": int(nv), "table_values": nstored,
         "fraction_of_computed_3j_used": nstored / nv,

@@ -2,8 +2,8 @@
 
 Measures, for random families (j1 j2 j3; −m2−m3 m2 m3) over j1, three implementations:
 
-* ``public``  — :func:`shspec.wigner.wigner3j_family` (double-double recursion :func:`family_into_dd`, rounded);
-* ``table``   — :func:`shspec.wigner.family_into`, the double recursion used by the Gaunt table builder;
+* ``public``  — :func:`shspec.gaunt.wigner_dd.wigner3j_family` (double-double recursion :func:`family_into_dd`, rounded);
+* ``table``   — :func:`shspec.gaunt.wigner.family_into`, the double recursion used by the Gaunt table builder;
 * ``pyshtools`` — ``pyshtools.utils.Wigner3j(j2, j3, m1, m2, m3)`` (SHTOOLS' Fortran routine, same family),
 
 against WIGXJPF (pywigxjpf: exact arithmetic, rounded once to double, so it is itself within 1.1e-16 relative).
@@ -33,7 +33,8 @@ import numba as nb
 import numpy as np
 import pywigxjpf as wx
 
-from shspec.wigner import family_into, family_into_dd, family_range, wigner3j_family
+from shspec.gaunt.wigner import family_into, family_range
+from shspec.gaunt.wigner_dd import family_into_dd, wigner3j_family
 
 try:
     import pyshtools

@@ -14,9 +14,9 @@ import argparse
 import sys
 import time
 
-from shspec.cache import cache_dir, ensure_cache_dir, get_table, list_tables, load_table, table_path, verify_table
+from shspec.gaunt.cache import cache_dir, ensure_cache_dir, get_table, list_tables, load_table, table_path, verify_table
 from shspec.errors import ShspecError
-from shspec.table import check_limits
+from shspec.gaunt.table import check_limits
 
 _EPILOG = """\
 actions:

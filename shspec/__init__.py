@@ -8,19 +8,14 @@ The public API is a few verbs over a few value objects:
 * the engine underneath: :func:`wigner3j`, :func:`real_gaunt`, :func:`get_table`.
 """
 
-from .cache import get_table
-from .convergence import convergence, convergence_in_factor
 from .embed import EmbedOptions, EmbedResult, embed
 from .errors import *  # noqa: F401,F403
 from .errors import __all__ as _errors_all
-from .factor import ConformalFactor
-from .galerkin import HarmonicModel, SpectrumResult, spectrum
-from .gaunt import real_gaunt
-from .harmonics import cilm_to_vector, degree_order, flat_index, ncoeffs, vector_to_cilm, vector_to_shcoeffs
+from .galerkin import HarmonicModel, SpectrumResult, convergence, convergence_in_factor, spectrum
+from .gaunt import GauntTable, get_table, real_gaunt, wigner3j
 from .inverse import FitOptions, FitResult, Stage, Target, align, fit
 from .mesh import CMCFOptions, CMCFResult, MeshModel, TriangleMesh, cmcf, load_mesh, mesh_spectrum, save_mesh
-from .table import GauntTable
-from .wigner import wigner3j
+from .sphere import ConformalFactor, cilm_to_vector, degree_order, flat_index, ncoeffs, vector_to_cilm, vector_to_shcoeffs
 
 __version__ = "0.1.0"
 

@@ -8,9 +8,9 @@ import h5py
 import numpy as np
 import pytest
 
-from shspec.cache import get_table, list_tables, load_table, save_table, table_path, verify_table
+from shspec.gaunt.cache import get_table, list_tables, load_table, save_table, table_path, verify_table
 from shspec.errors import BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError
-from shspec.table import build_table
+from shspec.gaunt.build import build_table
 
 
 def test_round_trip_and_metadata(tmp_path):

@@ -9,7 +9,7 @@ import pytest
 
 from shspec import ConformalFactor
 from shspec.cli import main
-from shspec.convergence import convergence, convergence_in_factor, pl_spectrum_of_factor
+from shspec.galerkin.convergence import convergence, convergence_in_factor, pl_spectrum_of_factor
 from shspec.errors import InvalidArgumentError
 
 

@@ -11,8 +11,8 @@ from shspec.embed import (EmbedOptions, EmbedSystem, continuation_schedule, edge
                           mesh_edges, nested_dissection, self_intersections, smooth_factors, surface_distance,
                           target_edge_lengths, vertex_factors)
 from shspec.embed.embed import _iterate
-from shspec.factor import ConformalFactor
-from shspec.mesh.bridge import sample_harmonic
+from shspec.sphere.factor import ConformalFactor
+from shspec.sphere.evaluate import sample_harmonic
 from shspec.mesh.cmcf import cmcf
 from shspec.mesh.io import load_mesh
 from shspec.mesh.shapes import blob, icosphere, star_surface

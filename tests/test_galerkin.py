@@ -6,8 +6,8 @@ import scipy.linalg
 
 from shspec import ConformalFactor, spectrum
 from shspec.errors import BandLimitError, InvalidArgumentError, NotPositiveError
-from shspec.galerkin import HarmonicModel
-from shspec.harmonics import degrees
+from shspec.galerkin.solver import HarmonicModel
+from shspec.sphere.harmonics import degrees
 
 from conftest import random_factor_coefficients
 

@@ -10,8 +10,8 @@ from sympy.physics.wigner import real_gaunt as sympy_real_gaunt
 
 from shspec import real_gaunt
 from shspec.errors import InvalidArgumentError
-from shspec.grid import evaluate_on_grid, glq_grid
-from shspec.harmonics import degree_order
+from shspec.sphere.grid import evaluate_on_grid, glq_grid
+from shspec.sphere.harmonics import degree_order
 
 
 def _lm(lmax):

@@ -6,8 +6,8 @@ import pytest
 import scipy.special
 
 from shspec.errors import BandLimitError, ConventionError, InvalidArgumentError
-from shspec.grid import evaluate_on_grid, expand_grid, glq_grid
-from shspec.harmonics import (as_coefficients, cilm_to_vector, degree_order, flat_index, lmax_of_size,
+from shspec.sphere.grid import evaluate_on_grid, expand_grid, glq_grid
+from shspec.sphere.harmonics import (as_coefficients, cilm_to_vector, degree_order, flat_index, lmax_of_size,
                               shcoeffs_to_vector, vector_to_cilm, vector_to_shcoeffs)
 
 

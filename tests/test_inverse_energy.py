@@ -7,7 +7,7 @@ import pytest
 
 from shspec import HarmonicModel
 from shspec.errors import InvalidArgumentError, NotPositiveError
-from shspec.harmonics import degrees
+from shspec.sphere.harmonics import degrees
 from shspec.inverse.energy import (Objective, eigenvalue_weights, harmonic_free_indices, regularizer_matrix,
                                    relative_residual)
 

@@ -14,11 +14,11 @@ import pytest
 
 from shspec import HarmonicModel
 from shspec.cli import main
-from shspec.inverse import (FitOptions, Stage, align, blob_factor, fit, harmonic_target, mirror_coefficients,
-                            power_spectrum, random_centred_coefficients)
+from shspec.inverse import FitOptions, Stage, align, blob_factor, fit, harmonic_target, random_centred_coefficients
 from shspec.inverse import optimize as optimize_module
 from shspec.inverse.energy import Objective, eigenvalue_weights, harmonic_free_indices
 from shspec.inverse.optimize import make_optimizer
+from shspec.sphere.rotate import mirror_coefficients, power_spectrum
 
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from shspec.errors import InvalidArgumentError
-from shspec.inverse.align import mirror_coefficients, power_spectrum
+from shspec.sphere.rotate import mirror_coefficients, power_spectrum
 from shspec.inverse.options import Stage, parse_schedule
 from shspec.inverse.schedule import numeig_ramp
 from shspec.inverse.targets import (Target, blob_factor, estimate_area, parse_target, read_spectrum)

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from shspec.errors import InvalidArgumentError, MeshError
-from shspec.harmonics import flat_index, vector_to_shcoeffs
-from shspec.mesh.bridge import fit_harmonic, harmonic_matrix, points_to_angles, sample_harmonic
+from shspec.sphere.harmonics import flat_index, vector_to_shcoeffs
+from shspec.mesh.bridge import fit_harmonic
+from shspec.sphere.evaluate import harmonic_matrix, points_to_angles, sample_harmonic
 from shspec.mesh.shapes import BLOB_COEFFICIENTS, blob, icosphere, star_surface
 from shspec.mesh.validate import validate_mesh
 

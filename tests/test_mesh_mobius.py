@@ -7,9 +7,10 @@ import pyshtools
 import pytest
 
 from shspec.errors import InvalidArgumentError, MeshError, NotPositiveError
-from shspec.harmonics import cilm_to_vector
+from shspec.sphere.harmonics import cilm_to_vector
 from shspec.mesh.cotan import vertex_areas
-from shspec.mesh.mobius import center_harmonic, center_mesh, mobius_scale, mobius_translate
+from shspec.mesh.mobius import center_mesh
+from shspec.sphere.mobius import center_harmonic, mobius_scale, mobius_translate
 from shspec.mesh.shapes import icosphere
 
 

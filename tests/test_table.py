@@ -5,9 +5,10 @@ import pytest
 
 from shspec import real_gaunt
 from shspec.errors import BandLimitError, InvalidArgumentError
-from shspec.grid import evaluate_on_grid, glq_grid
-from shspec.harmonics import degree_order
-from shspec.table import GauntTable, build_table, table_size
+from shspec.sphere.grid import evaluate_on_grid, glq_grid
+from shspec.sphere.harmonics import degree_order
+from shspec.gaunt.build import build_table
+from shspec.gaunt.table import GauntTable, table_size
 
 from conftest import random_factor_coefficients
 
@@ -99,6 +100,6 @@ def test_bad_limits_and_inputs():
 
 def test_larger_table_entries_match_the_accurate_scalar_path():
     """Most families of a table come from the truncated forward recursion; spot-check them against real_gaunt."""
-    from shspec.cache import verify_table
+    from shspec.gaunt.cache import verify_table
 
     assert verify_table(build_table(40, 20), samples=3000, seed=3) < 5e-15

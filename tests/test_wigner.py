@@ -1,4 +1,4 @@
-"""Tests of shspec.wigner: accuracy against exact values, selection rules, symmetries, orthogonality, errors.
+"""Tests of shspec.gaunt.wigner and wigner_dd: accuracy against exact values, selection rules, symmetries, orthogonality, errors.
 
 The exact reference is WIGXJPF (pywigxjpf: exact integer arithmetic, rounded once to double) and, for a few small
 symbols, sympy's closed form.  The accuracy contract checked here:
@@ -20,14 +20,9 @@ from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from shspec.errors import InvalidArgumentError
-from shspec.wigner import (
-    _two_prod,
-    family_into,
-    family_into_dd,
-    family_range,
-    wigner3j,
-    wigner3j_family,
-)
+from shspec.gaunt.doubledouble import _two_prod
+from shspec.gaunt.wigner import family_into, family_range
+from shspec.gaunt.wigner_dd import family_into_dd, wigner3j, wigner3j_family
 
 wigxjpf = pytest.importorskip("pywigxjpf")
 
@@ -331,7 +326,8 @@ def test_numpy_integers_accepted():
 
 def test_truncated_forward_family_matches_double_double():
     """family_upto_into: exact first symbol + forward recursion, up to jtop; it must refuse the unstable region."""
-    from shspec.wigner import factorial_table, family_into_dd, family_range, family_upto_into
+    from shspec.gaunt.wigner import factorial_table, family_range, family_upto_into
+    from shspec.gaunt.wigner_dd import family_into_dd
 
     fh, fl, fe = factorial_table(400)
     rng = np.random.default_rng(7)

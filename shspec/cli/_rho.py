@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InvalidArgumentError
-from ..factor import ConformalFactor
+from ..sphere.factor import ConformalFactor
 
 RHO_HELP = (
     "the conformal factor rho: 'boost:K[:X,Y,Z]' (Moebius-boosted unit sphere, spectrum exactly l(l+1); default "

@@ -73,7 +73,7 @@ def _fit(args) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..galerkin import HarmonicModel
+    from ..galerkin.solver import HarmonicModel
     from ..inverse import plots
     from ..inverse.align import align
     from ..inverse.checkpoint import save_result
@@ -116,7 +116,7 @@ def _fit(args) -> int:
 
         la = min(args.lmax_factor, int(np.sqrt(model.nparams / 2)) - 1)
         cilm = fit_harmonic(target.sphere, best.params, la).coefficients
-        from ..harmonics import vector_to_cilm
+        from ..sphere.harmonics import vector_to_cilm
 
         cilm = vector_to_cilm(cilm)
     summary = {
@@ -132,7 +132,7 @@ def _fit(args) -> int:
     }
     aligned = None
     if target.truth is not None:
-        from ..factor import ConformalFactor
+        from ..sphere.factor import ConformalFactor
 
         aligned = align(ConformalFactor(cilm), target.truth)
         summary["alignment"] = {"relative_error": aligned.relative_error, "power_error": aligned.power_error,

@@ -65,7 +65,7 @@ def _exact_sphere(k: int) -> np.ndarray:
 
 def run_forward(args) -> int:
     from .. import __version__
-    from ..galerkin import spectrum
+    from ..galerkin.solver import spectrum
 
     rho = parse_rho(args.rho, args.lmax_factor if args.lmax_factor is not None else args.lmax)
     start = time.perf_counter()
@@ -125,7 +125,7 @@ def run_convergence(args) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..convergence import convergence, convergence_in_factor, pl_spectrum_of_factor
+    from ..galerkin.convergence import convergence, convergence_in_factor, pl_spectrum_of_factor
 
     lmax_values = _int_list(args.lmax_values, "--lmax-values")
     rho = parse_rho(args.rho, args.lmax_factor)

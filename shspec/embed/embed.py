@@ -514,8 +514,8 @@ def vertex_factors(sphere: TriangleMesh, factors) -> np.ndarray:
     NotPositiveError
         ρ ≤ 0 at some vertex (a band-limited expansion of extreme factors can be).
     """
-    from ..factor import ConformalFactor
-    from ..mesh.bridge import sample_harmonic
+    from ..sphere.factor import ConformalFactor
+    from ..sphere.evaluate import sample_harmonic
 
     sphere = check_sphere(sphere)
     n = sphere.nvertices

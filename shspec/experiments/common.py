@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..factor import ConformalFactor
-from ..harmonics import degrees
+from ..sphere.factor import ConformalFactor
+from ..sphere.harmonics import degrees
 
 
 def centred_random_factor(lmax_factor: int, amplitude: float, seed: int) -> ConformalFactor:

@@ -87,7 +87,8 @@ def harmonic_errors(sphere, fitted, truth, lmax_factor: int, *, aligned: bool = 
     ``aligned_error`` (only if ``aligned``): relative L2 error after Möbius centering and the best element of O(3)
     (:func:`shspec.inverse.align`; measured 15-20 s per call on this loaded machine at La = 6, hence optional).
     """
-    from ..inverse import align, power_spectrum
+    from ..inverse import align
+    from ..sphere.rotate import power_spectrum
     from ..mesh.bridge import fit_harmonic
 
     la = min(int(lmax_factor), int(np.sqrt(sphere.nvertices / 2)) - 1)

@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..galerkin import HarmonicModel
-from ..harmonics import degrees
+from ..galerkin.solver import HarmonicModel
+from ..sphere.harmonics import degrees
 from .base import Experiment, Finding, register
 from .common import centred_random_factor, figure, save_figure
 from .fitting import Progress, single_threaded

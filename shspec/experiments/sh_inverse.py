@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..galerkin import HarmonicModel
-from ..inverse import (FitOptions, Stage, align, blob_factor, fit, harmonic_target, parse_schedule, power_spectrum,
-                       save_result)
+from ..galerkin.solver import HarmonicModel
+from ..inverse import FitOptions, Stage, align, blob_factor, fit, harmonic_target, parse_schedule, save_result
 from ..inverse.plots import plot_factors
+from ..sphere.rotate import power_spectrum
 from .base import Experiment, Finding, register
 from .common import figure, save_figure
 from .fitting import Progress, single_threaded

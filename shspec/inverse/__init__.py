@@ -6,7 +6,7 @@ solutions) → :func:`align` against the truth (Möbius centering, best element 
 figures of :mod:`shspec.inverse.plots`.
 """
 
-from .align import Alignment, align, mirror_coefficients, power_spectrum, rotate_coefficients
+from .align import Alignment, align
 from .checkpoint import load_result_summary, save_result
 from .energy import Objective, eigenvalue_weights, relative_residual
 from .multistart import distinct_solutions, fit
@@ -15,7 +15,7 @@ from .schedule import degree_ramp, numeig_ramp
 from .targets import (BLOB_HARMONIC, Target, blob_factor, random_centred_coefficients, estimate_area, harmonic_target, mesh_target, parse_target,
                       read_spectrum, spectrum_target)
 
-__all__ = ["Alignment", "align", "mirror_coefficients", "power_spectrum", "rotate_coefficients",
+__all__ = ["Alignment", "align",
            "load_result_summary", "save_result", "Objective", "eigenvalue_weights", "relative_residual",
            "distinct_solutions", "fit", "FitOptions", "FitResult", "Stage", "StartResult", "parse_schedule",
            "numeig_ramp", "degree_ramp", "BLOB_HARMONIC", "Target", "blob_factor", "random_centred_coefficients", "estimate_area", "harmonic_target",

@@ -1,9 +1,8 @@
 """Comparison of a fitted ρ with the truth, up to what a spectrum cannot see: Möbius maps and O(3).
 
-Both factors are Möbius-centred (a_1m = 0, :func:`~shspec.mesh.mobius.center_harmonic`); then the element of O(3)
-that best maps the fit onto the truth is found: rotations act on each degree by the Wigner-D matrices
-(``pyshtools.rotate.SHRotateRealCoef``), and a reflection is a rotation composed with the mirror z ↦ −z, which
-multiplies a_lm by (−1)^(l+m) (P_l^m(−x) = (−1)^(l+m) P_l^m(x)).  The search minimizes ‖R·a − b‖² over SO(3) for
+Both factors are Möbius-centred (a_1m = 0, :func:`~shspec.sphere.mobius.center_harmonic`); then the element of O(3)
+that best maps the fit onto the truth is found (:mod:`shspec.sphere.rotate`: Wigner-D rotations, the mirror
+z ↦ −z).  The search minimizes ‖R·a − b‖² over SO(3) for
 both a and its mirror image.  Levenberg–Marquardt on local rotation-vector coordinates refines the 24 rotations of
 the octahedral group on the misfit of degrees ≤ 2 (smooth over SO(3)), then the best distinct few on degrees ≤ 3,
 4, ..., La in turn (see :func:`align`).  The per-degree power
@@ -14,57 +13,19 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
-import pyshtools
 import scipy.optimize
 from scipy.spatial.transform import Rotation
 
 from ..errors import InvalidArgumentError
-from ..harmonics import as_coefficients, degree_order, lmax_of_size, ncoeffs
+from ..sphere.harmonics import as_coefficients, lmax_of_size, ncoeffs
+from ..sphere.rotate import rotator, mirror_coefficients, power_spectrum, rotate_coefficients
 
-__all__ = ["power_spectrum", "rotate_coefficients", "mirror_coefficients", "Alignment", "align"]
+__all__ = ["Alignment", "align"]
 
 #: Candidates kept from one degree level to the next, per handedness.
 _REFINED_SEEDS = 8
-
-
-def power_spectrum(coeffs) -> np.ndarray:
-    """Per-degree power P_l = Σ_m a_lm², shape (La+1,), of a flat vector, cilm array or SHCoeffs."""
-    a = as_coefficients(coeffs)
-    l, _ = degree_order(lmax_of_size(a.size))
-    return np.bincount(l, weights=a * a)
-
-
-def rotate_coefficients(coeffs, angles) -> np.ndarray:
-    """Coefficients (N,) of ρ rotated by the z-y-z Euler angles (α, β, γ) in radians, as ``SHRotateRealCoef``.
-
-    The rotation is linear and the same for the 'ortho' and '4pi' normalizations (they differ by one constant), so
-    shspec's coefficients go straight to pyshtools.
-    """
-    a = as_coefficients(coeffs)
-    angles = np.asarray(angles, dtype=float)
-    if angles.shape != (3,) or not np.all(np.isfinite(angles)):
-        raise InvalidArgumentError(f"angles must be three finite Euler angles, got {angles!r}")
-    return _rotator(lmax_of_size(a.size))(a, angles)
-
-
-@lru_cache(maxsize=8)
-def _rotator(lmax: int):
-    """A fast rotation of validated flat vectors of band limit lmax (the alignment calls it thousands of times)."""
-    l, m = degree_order(lmax)
-    sheet, col = (m < 0).astype(int), np.abs(m)
-    dj = pyshtools.rotate.djpi2(max(lmax, 1))
-
-    def rotate(a: np.ndarray, angles: np.ndarray) -> np.ndarray:
-        if lmax == 0:
-            return a.copy()
-        cilm = np.zeros((2, lmax + 1, lmax + 1))
-        cilm[sheet, l, col] = a
-        return pyshtools.rotate.SHRotateRealCoef(cilm, angles, dj)[sheet, l, col]
-
-    return rotate
 
 
 def _euler(rotation: Rotation) -> np.ndarray:
@@ -72,13 +33,6 @@ def _euler(rotation: Rotation) -> np.ndarray:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         return rotation.as_euler("zyz")
-
-
-def mirror_coefficients(coeffs) -> np.ndarray:
-    """Coefficients (N,) of ρ∘σ with σ the mirror z ↦ −z: a_lm (−1)^(l+m)."""
-    a = as_coefficients(coeffs)
-    l, m = degree_order(lmax_of_size(a.size))
-    return a * np.where((l + m) % 2 == 0, 1.0, -1.0)
 
 
 @dataclass(frozen=True)
@@ -135,8 +89,8 @@ def align(fit, truth, *, center: bool = True, center_tol: float = 1e-12) -> Alig
     NotPositiveError
         If centering meets a factor that is not positive.
     """
-    from ..factor import ConformalFactor
-    from ..mesh.mobius import center_harmonic
+    from ..sphere.factor import ConformalFactor
+    from ..sphere.mobius import center_harmonic
 
     vecs = [f.coefficients if isinstance(f, ConformalFactor) else as_coefficients(f) for f in (fit, truth)]
     lmax = max(lmax_of_size(v.size) for v in vecs)
@@ -158,7 +112,7 @@ def align(fit, truth, *, center: bool = True, center_tol: float = 1e-12) -> Alig
         # only ever see starts already close to a good minimum.
         for level in range(min(2, lmax), lmax + 1):
             n = ncoeffs(level)
-            rotate, src_l, b_l = _rotator(level), src[:n], b[:n]
+            rotate, src_l, b_l = rotator(level), src[:n], b[:n]
 
             def residual(omega, seed):
                 return rotate(src_l, _euler(Rotation.from_rotvec(omega) * seed)) - b_l

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InvalidArgumentError
-from ..harmonics import degrees
+from ..sphere.harmonics import degrees
 from ..model import SpectralModel, Spectrum
 
 __all__ = ["eigenvalue_weights", "regularizer_matrix", "harmonic_free_indices", "relative_residual", "Evaluation",
@@ -71,7 +71,7 @@ def regularizer_matrix(model: SpectralModel, reg: float):
     Harmonic models: D = √(2R) diag(l(l+1)).  Mesh models: D = √(2R) M₀^{-1/2} L with the cotan stiffness L and
     the reference vertex areas M₀ (the same quadratic form as :meth:`MeshModel.bilaplacian_penalty`).
     """
-    from ..galerkin import HarmonicModel
+    from ..galerkin.solver import HarmonicModel
     from ..mesh.model import MeshModel
 
     reg = float(reg)

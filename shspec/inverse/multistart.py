@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import InvalidArgumentError
 from ..model import SpectralModel
-from .align import power_spectrum
+from ..sphere.rotate import power_spectrum
 from .checkpoint import fingerprint, load_checkpoint, save_checkpoint
 from .options import FitOptions, FitResult, StartResult
 from .schedule import FitProblem, StartProgress, run_start
@@ -53,7 +53,7 @@ def distinct_solutions(starts: list, kind: str, tol: float) -> list:
 
 
 def _describe(model) -> str:
-    from ..galerkin import HarmonicModel
+    from ..galerkin.solver import HarmonicModel
 
     if isinstance(model, HarmonicModel):
         return f"harmonic {model.lmax} {model.lmax_factor}"

@@ -288,8 +288,8 @@ class FitResult:
         return sum(s.success for s in self.starts)
 
     def factor(self):
-        """The best ρ as a :class:`~shspec.factor.ConformalFactor` (harmonic fits)."""
-        from ..factor import ConformalFactor
+        """The best ρ as a :class:`~shspec.sphere.factor.ConformalFactor` (harmonic fits)."""
+        from ..sphere.factor import ConformalFactor
 
         if self.kind != "harmonic":
             raise InvalidArgumentError("factor() is for harmonic fits; a mesh fit's params are per-vertex factors")

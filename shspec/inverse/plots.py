@@ -30,7 +30,7 @@ def plot_factors(result: FitResult, aligned=None):
     """
     import matplotlib.pyplot as plt
 
-    from ..factor import ConformalFactor
+    from ..sphere.factor import ConformalFactor
 
     result = _check(result)
     target = result.target

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import BandLimitError, InvalidArgumentError, NotPositiveError
-from ..harmonics import degrees, ncoeffs
+from ..sphere.harmonics import degrees, ncoeffs
 from ..model import SpectralModel
 from .energy import Objective, eigenvalue_weights, harmonic_free_indices
 from .optimize import make_optimizer
@@ -108,7 +108,7 @@ class FitProblem:
     """
 
     def __init__(self, model: SpectralModel, target: Target, options: FitOptions):
-        from ..galerkin import HarmonicModel
+        from ..galerkin.solver import HarmonicModel
         from ..mesh.model import MeshModel
 
         if not isinstance(target, Target):
@@ -149,7 +149,7 @@ class FitProblem:
 
     def stage_model(self, s: int) -> SpectralModel:
         """The model of stage s: for harmonic stages, the Galerkin model of the stage's degree."""
-        from ..galerkin import HarmonicModel
+        from ..galerkin.solver import HarmonicModel
 
         la = self.stage_degree(s)
         if la is None or la == self.model.lmax_factor:
@@ -186,7 +186,7 @@ class FitProblem:
                     return params
                 noise = noise * 0.5
             raise InvalidArgumentError("could not draw a positive random start")  # pragma: no cover
-        from ..mesh.bridge import sample_harmonic
+        from ..sphere.evaluate import sample_harmonic
 
         areas = self.model.vertex_areas
         c0 = self.area / areas.sum()
@@ -196,7 +196,7 @@ class FitProblem:
         return c0 * (1.0 + field_)
 
     def _minimum(self, params) -> float:
-        from ..factor import ConformalFactor
+        from ..sphere.factor import ConformalFactor
 
         return ConformalFactor(np.array(params)).minimum().value  # a copy: ConformalFactor freezes its array
 
@@ -342,7 +342,7 @@ def _block_moves(params: np.ndarray, la: int) -> list:
     """Power-preserving moves of one degree block l ≥ 2: its half-turns about the z, y and x axes, and for odd l
     also these composed with the sign −1 and the sign alone (the point reflection of that block only).  For even l
     the mirror z ↦ −z of the block is its half-turn about z; for odd l the negated one."""
-    from .align import rotate_coefficients
+    from ..sphere.rotate import rotate_coefficients
 
     l_all = degrees(la)
     moves = []

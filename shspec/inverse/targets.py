@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InvalidArgumentError
-from ..factor import ConformalFactor
-from ..harmonics import check_degree, degrees, flat_index, ncoeffs
+from ..sphere.factor import ConformalFactor
+from ..sphere.harmonics import check_degree, degrees, flat_index, ncoeffs
 
 __all__ = ["BLOB_HARMONIC", "blob_factor", "random_centred_coefficients", "Target", "harmonic_target", "mesh_target", "spectrum_target",
            "read_spectrum", "estimate_area", "parse_target", "TARGET_SOURCES"]
@@ -136,7 +136,7 @@ def estimate_area(eigenvalues) -> float:
 
 def harmonic_target(rho, lmax: int, numeig: int, *, name: str | None = None) -> Target:
     """The first ``numeig`` Galerkin eigenvalues of a harmonic ρ at basis band limit ``lmax``."""
-    from ..galerkin import HarmonicModel
+    from ..galerkin.solver import HarmonicModel
 
     factor = rho if isinstance(rho, ConformalFactor) else ConformalFactor(rho)
     model = HarmonicModel(lmax, factor.lmax)
@@ -161,7 +161,7 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
     source : {"pl", "harmonic"}
         See :data:`TARGET_SOURCES`.
     """
-    from ..galerkin import HarmonicModel
+    from ..galerkin.solver import HarmonicModel
     from ..mesh.bridge import fit_harmonic
     from ..mesh.cmcf import cmcf
     from ..mesh.eigen import mesh_spectrum

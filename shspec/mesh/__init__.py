@@ -1,16 +1,16 @@
-"""The piecewise-linear mesh path: meshes, shapes, cotan spectra, cMCF, Möbius centering and the harmonic bridge.
+"""The piecewise-linear mesh path: meshes, shapes, cotan spectra, cMCF, Möbius centering of meshes and the harmonic bridge.
 
 Pipeline: :func:`load_mesh` (validated) → :func:`cmcf` (sphere mesh + per-vertex conformal factors) →
 :func:`fit_harmonic` (factors as harmonic coefficients ρ) or :class:`MeshModel` (factors as parameters of the
 cotan spectrum, for the inverse solver); :func:`mesh_spectrum` gives any mesh's cotan spectrum.
 """
 
-from .bridge import HarmonicFit, fit_harmonic, harmonic_matrix, sample_harmonic
+from .bridge import HarmonicFit, fit_harmonic
 from .cmcf import CMCFOptions, CMCFResult, cmcf, roundness
 from .cotan import cotan_stiffness, mass_matrix, vertex_areas
 from .eigen import EigenOptions, eigenpairs, mesh_spectrum
 from .io import load_mesh, save_mesh
-from .mobius import HarmonicCentering, MeshCentering, center_harmonic, center_mesh
+from .mobius import MeshCentering, center_mesh
 from .model import MeshModel
 from .plot import plot_hammer
 from .shapes import BLOB_COEFFICIENTS, blob, icosphere, star_surface
@@ -23,7 +23,7 @@ __all__ = [
     "cotan_stiffness", "mass_matrix", "vertex_areas",
     "EigenOptions", "eigenpairs", "mesh_spectrum", "MeshModel",
     "CMCFOptions", "CMCFResult", "cmcf", "roundness",
-    "MeshCentering", "HarmonicCentering", "center_mesh", "center_harmonic",
-    "HarmonicFit", "fit_harmonic", "harmonic_matrix", "sample_harmonic",
+    "MeshCentering", "center_mesh",
+    "HarmonicFit", "fit_harmonic",
     "plot_hammer",
 ]

@@ -11,8 +11,8 @@ import numpy as np
 import trimesh
 
 from ..errors import InvalidArgumentError
-from ..harmonics import flat_index
-from .bridge import harmonic_matrix
+from ..sphere.harmonics import flat_index
+from ..sphere.evaluate import harmonic_matrix
 from .triangle_mesh import TriangleMesh
 
 __all__ = ["icosphere", "star_surface", "blob", "BLOB_COEFFICIENTS", "MAX_SUBDIVISIONS"]

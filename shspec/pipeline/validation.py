@@ -30,7 +30,8 @@ from ..embed.ambiguity import AmbiguityReport, detect_ambiguity
 from ..embed.distances import SurfaceDistance, surface_distance
 from ..embed.embed import EmbedOptions, EmbedResult, embed
 from ..errors import InvalidArgumentError, NotPositiveError, ShspecError
-from ..mesh.bridge import fit_harmonic, sample_harmonic
+from ..mesh.bridge import fit_harmonic
+from ..sphere.evaluate import sample_harmonic
 from ..mesh.cmcf import CMCFResult, cmcf
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.model import MeshModel
@@ -193,7 +194,7 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
     spectra["cmcf_pl"] = MeshModel(flow.sphere).spectrum(flow.factors, k).eigenvalues
     expansion = fit_harmonic(flow.sphere, flow.factors, la)
     try:
-        from ..galerkin import HarmonicModel
+        from ..galerkin.solver import HarmonicModel
 
         spectra["cmcf_harmonic"] = HarmonicModel(opt.lmax, la).spectrum(expansion.coefficients, k).eigenvalues
         status["cmcf_harmonic"] = "ok"
@@ -227,7 +228,7 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
     else:
         fit_fn, FitOptions, mesh_target, align = api
         try:
-            from ..galerkin import HarmonicModel
+            from ..galerkin.solver import HarmonicModel
 
             t = time.perf_counter()
             target = mesh_target(mesh, opt.lmax, k, la, source="pl", name=name)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 import pyshtools
 
-from .errors import InvalidArgumentError, NotPositiveError
+from ..errors import InvalidArgumentError, NotPositiveError
 from .grid import evaluate_on_grid, expand_grid, glq_grid
 from .harmonics import (as_coefficients, check_degree, lmax_of_size, vector_to_cilm, vector_to_shcoeffs)
 

@@ -3,7 +3,7 @@
 Schema (format version 1), one file ``gaunt_Lb{Lb}_La{La}.h5`` per table:
 
 ================  =========================================================================================
-``/values``       float64 dataset, the stored families in the layout of :mod:`shspec.table`
+``/values``       float64 dataset, the stored families in the layout of :mod:`shspec.gaunt.table`
 attr ``format``   ``"shspec-gaunt"``
 attr ``format_version``  int, 1
 attr ``lmax``     int, basis band limit Lb
@@ -37,8 +37,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from .errors import (BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError)
-from .table import GauntTable, build_table, check_limits, table_size
+from ..errors import (BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError)
+from .build import build_table
+from .table import GauntTable, check_limits, table_size
 
 __all__ = ["CONVENTION", "FORMAT_VERSION", "TableInfo", "cache_dir", "table_path", "save_table", "load_table",
            "get_table", "list_tables", "verify_table", "ensure_cache_dir"]
@@ -105,7 +106,7 @@ def _checksum(values: np.ndarray) -> str:
 def save_table(table: GauntTable, directory: str | os.PathLike | None = None, *, build_seconds: float = float("nan"),
                ) -> Path:
     """Write ``table`` to the cache atomically (temporary file in the same folder, fsync, rename); returns the path."""
-    from . import __version__
+    from .. import __version__
 
     directory = ensure_cache_dir(cache_dir(directory))
     path = table_path(table.lmax, table.lmax_factor, directory)
@@ -319,8 +320,8 @@ def verify_table(table: GauntTable, samples: int = 2000, seed: int = 0) -> float
     Each sample is one plan entry (a real pair i <= j and an order m3) and one degree l3 of its family, recomputed
     with :func:`shspec.real_gaunt`.
     """
-    from .gaunt import real_gaunt
-    from .harmonics import degree_order
+    from .real_gaunt import real_gaunt
+    from ..sphere.harmonics import degree_order
 
     plan = table.plan
     n = plan.i.size

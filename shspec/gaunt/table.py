@@ -4,7 +4,7 @@ For a basis band limit Lb (indices i, j) and a factor band limit La (index k) th
 degrees l1 <= l2 <= min(Lb, l1 + La) and each pair of absolute orders (a, b) (with a <= b when l1 = l2), one or two
 *families* over l3: the complex Gaunt coefficients of the order pattern μ = (a, b, −a−b) ("sum") and, when a, b > 0,
 μ = (a, −b, b−a) ("difference"), for l3 = l3min, l3min + 2, …, min(l1 + l2, La).  Each stored value serves up to four
-real coefficients (the signs of m1 and m2; see :mod:`shspec.gaunt`), and only l1 <= l2 is stored, so a table holds
+real coefficients (the signs of m1 and m2; see :mod:`shspec.gaunt.real_gaunt`), and only l1 <= l2 is stored, so a table holds
 about 1/8 of the structural nonzeros of G: 1.4e8 values for (Lb, La) = (100, 50) instead of 1.1e9.
 
 The layout is implicit: families follow a fixed loop order, so a table is fully described by (Lb, La) and its value
@@ -15,20 +15,16 @@ by the degree of i so that threads write disjoint rows of the upper triangle of 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numba as nb
 import numpy as np
 
-from .errors import BandLimitError, InvalidArgumentError
-from .gaunt import order_factor
-from .harmonics import check_degree, ncoeffs
-from .wigner import factorial_table, family_into, family_upto_into
+from ..errors import BandLimitError, InvalidArgumentError
+from .real_gaunt import order_factor
+from ..sphere.harmonics import check_degree, ncoeffs
 
-__all__ = ["GauntTable", "build_table", "table_size", "check_limits"]
-
-_INV_4PI = 1.0 / (4.0 * math.pi)
+__all__ = ["GauntTable", "table_size", "check_limits"]
 
 
 def check_limits(lmax, lmax_factor) -> tuple[int, int]:
@@ -104,80 +100,10 @@ def table_size(lmax: int, lmax_factor: int) -> int:
     return int(_block_offsets(lmax, lmax_factor)[lmax, lmax + 1])
 
 
-# ---------------------------------------------------------------------------------------------------------------
-# building
-
-
-@nb.njit(cache=True, nogil=True)
-def _fill_row(l1, lmax, lmax_factor, off, values, w0, w, fh, fl, fe):
-    for l2 in range(l1, min(lmax, l1 + lmax_factor) + 1):
-        pos = off[l1, l2]
-        jmin0 = family_into(l1, l2, 0, 0, w0)[0]
-        fa, fmu2, fl3, fcnt = _block_families(l1, l2, lmax_factor)
-        for f in range(fa.size):
-            cnt = fcnt[f]
-            if cnt == 0:
-                continue
-            # only l3 <= La is stored: stop the recursion there when it is stable to (see shspec.wigner)
-            top = fl3[f] + 2 * (cnt - 1)
-            jmin, n, ok = family_upto_into(l1, l2, fa[f], fmu2[f], top, w, fh, fl, fe)
-            if not ok:
-                jmin = family_into(l1, l2, fa[f], fmu2[f], w)[0]
-            for t in range(cnt):
-                l3 = fl3[f] + 2 * t
-                pref = math.sqrt((2.0 * l1 + 1.0) * (2.0 * l2 + 1.0) * (2.0 * l3 + 1.0) * _INV_4PI)
-                values[pos + t] = pref * w0[l3 - jmin0] * w[l3 - jmin]
-            pos += cnt
-
-
-@nb.njit(cache=True, parallel=True)
-def _fill_rows(rows, lmax, lmax_factor, off, values, fh, fl, fe):
-    for r in nb.prange(rows.size):
-        w0 = np.empty(2 * lmax + 1)
-        w = np.empty(2 * lmax + 1)
-        _fill_row(rows[r], lmax, lmax_factor, off, values, w0, w, fh, fl, fe)
-
-
 def _balanced_rows(off: np.ndarray, lmax: int) -> np.ndarray:
     """Degrees l1 ordered so that consecutive chunks of a parallel loop get similar amounts of work."""
     work = np.diff(np.concatenate([[0], off[:, lmax + 1]]))
     return np.argsort(-work, kind="stable").astype(np.int64)
-
-
-def build_table(lmax: int, lmax_factor: int, *, progress: bool = False) -> "GauntTable":
-    """Compute the Gaunt table for the basis band limit ``lmax`` (Lb) and the factor band limit ``lmax_factor`` (La).
-
-    Parameters
-    ----------
-    lmax : int
-        Basis band limit Lb; the basis has (Lb+1)**2 functions.
-    lmax_factor : int
-        Band limit La of the conformal factor ρ, 0 <= La <= 2·Lb.
-    progress : bool
-        Show a tqdm progress bar (over degrees l1, weighted by their number of values).
-
-    Returns
-    -------
-    GauntTable
-    """
-    lmax, lmax_factor = check_limits(lmax, lmax_factor)
-    off = _block_offsets(lmax, lmax_factor)
-    total = int(off[lmax, lmax + 1])
-    values = np.empty(total)
-    rows = _balanced_rows(off, lmax)
-    fact = factorial_table(4 * lmax + 2)
-    if not progress:
-        _fill_rows(rows, lmax, lmax_factor, off, values, *fact)
-    else:
-        from tqdm.auto import tqdm
-
-        work = np.diff(np.concatenate([[0], off[:, lmax + 1]]))
-        nchunks = min(rows.size, 20)
-        with tqdm(total=total, unit="val", unit_scale=True, desc=f"Gaunt table ({lmax},{lmax_factor})") as bar:
-            for chunk in np.array_split(rows, nchunks):
-                _fill_rows(chunk, lmax, lmax_factor, off, values, *fact)
-                bar.update(int(work[chunk].sum()))
-    return GauntTable(lmax, lmax_factor, values)
 
 
 # ---------------------------------------------------------------------------------------------------------------

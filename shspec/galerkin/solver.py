@@ -19,12 +19,12 @@ import numba as nb
 import numpy as np
 import scipy.linalg
 
-from .cache import get_table
-from .errors import BandLimitError, InvalidArgumentError, NotPositiveError
-from .factor import ConformalFactor, as_factor
-from .harmonics import check_degree, degrees, ncoeffs
-from .model import SpectralModel, Spectrum
-from .table import GauntTable
+from ..gaunt.cache import get_table
+from ..errors import BandLimitError, InvalidArgumentError, NotPositiveError
+from ..sphere.factor import ConformalFactor, as_factor
+from ..sphere.harmonics import check_degree, degrees, ncoeffs
+from ..model import SpectralModel, Spectrum
+from ..gaunt.table import GauntTable
 
 __all__ = ["HarmonicModel", "SpectrumResult", "spectrum"]
 

@@ -32,8 +32,8 @@ import math
 import numba as nb
 import numpy as np
 
-from .errors import InvalidArgumentError
-from .harmonics import MAX_DEGREE
+from ..errors import InvalidArgumentError
+from ..sphere.harmonics import MAX_DEGREE
 from .wigner import family_into, family_range
 
 __all__ = ["real_gaunt", "order_factor"]

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pyshtools
 
-from .errors import BandLimitError, ConventionError, InvalidArgumentError
+from ..errors import BandLimitError, ConventionError, InvalidArgumentError
 
 __all__ = [
     "MAX_DEGREE",

@@ -1,0 +1,73 @@
+"""Real spherical harmonics at points of the sphere: the one evaluation path of shspec for scattered points.
+
+Harmonics are shspec's (pyshtools ``normalization='ortho'``, ``csphase=1``, flat index ``l*l + l + m``); a point
+x on the unit sphere has colatitude θ = arccos z (from +z) and longitude φ = atan2(y, x) (from +x).  They are
+evaluated with :func:`scipy.special.sph_harm_y` (complex, with the Condon–Shortley phase), converted by
+Y_{l,m>0} = √2 (−1)^m Re Y_l^m and Y_{l,−m} = √2 (−1)^m Im Y_l^m; tests check this against pyshtools.  On the
+nodes of a Gauss–Legendre grid, :mod:`shspec.sphere.grid` (a fast transform) serves instead.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import sph_harm_y
+
+from ..errors import InvalidArgumentError
+from .harmonics import as_coefficients, check_degree, degree_order, lmax_of_size
+
+__all__ = ["points_to_angles", "harmonic_matrix", "sample_harmonic"]
+
+
+def _points(points) -> np.ndarray:
+    try:
+        x = np.asarray(points, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidArgumentError(f"points must be numeric: {exc}") from None
+    if x.ndim != 2 or x.shape[1] != 3:
+        raise InvalidArgumentError(f"points must have shape (n, 3), got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise InvalidArgumentError("points contain NaN or inf")
+    r = np.linalg.norm(x, axis=1)
+    if np.any(r == 0):
+        raise InvalidArgumentError(f"point {int(np.flatnonzero(r == 0)[0])} is the origin: it has no direction")
+    return x
+
+
+def points_to_angles(points) -> tuple[np.ndarray, np.ndarray]:
+    """Colatitude θ ∈ [0, π] and longitude φ ∈ (−π, π] (radians), each (n,), of the directions of points (n, 3)."""
+    x = _points(points)
+    r = np.linalg.norm(x, axis=1)
+    theta = np.arccos(np.clip(x[:, 2] / r, -1.0, 1.0))
+    phi = np.arctan2(x[:, 1], x[:, 0])
+    return theta, phi
+
+
+def harmonic_matrix(points, lmax: int) -> np.ndarray:
+    """Real orthonormal harmonics at the directions of points.
+
+    Parameters
+    ----------
+    points : (n, 3) array
+        Points; only their directions matter.
+    lmax : int
+        Band limit.
+
+    Returns
+    -------
+    (n, (lmax+1)**2) array
+        Column i is Y_i, i = l*l + l + m, evaluated at every point.
+    """
+    lmax = check_degree(lmax, "lmax")
+    theta, phi = points_to_angles(points)
+    l, m = degree_order(lmax)
+    am = np.abs(m)
+    y = sph_harm_y(l[None, :], am[None, :], theta[:, None], phi[:, None])
+    scale = np.where(am % 2 == 0, 1.0, -1.0) * np.where(m == 0, 1.0, np.sqrt(2.0))
+    out = scale * np.where(m < 0, y.imag, y.real)
+    return out
+
+
+def sample_harmonic(coeffs, points) -> np.ndarray:
+    """Values (n,) of the harmonic expansion ``coeffs`` (flat vector, cilm array or SHCoeffs) at points (n, 3)."""
+    a = as_coefficients(coeffs)
+    return harmonic_matrix(points, lmax_of_size(a.size)) @ a
