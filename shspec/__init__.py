@@ -8,6 +8,7 @@ The public API is a few verbs over a few value objects:
 * the engine underneath: :func:`wigner3j`, :func:`real_gaunt`, :func:`get_table`.
 """
 
+from ._version import __version__
 from .embed import EmbedOptions, EmbedResult, embed
 from .errors import *  # noqa: F401,F403
 from .errors import __all__ as _errors_all
@@ -17,7 +18,6 @@ from .inverse import FitOptions, FitResult, Stage, Target, align, fit
 from .mesh import CMCFOptions, CMCFResult, MeshModel, TriangleMesh, cmcf, load_mesh, mesh_spectrum, save_mesh
 from .sphere import ConformalFactor, cilm_to_vector, degree_order, flat_index, ncoeffs, vector_to_cilm, vector_to_shcoeffs
 
-__version__ = "0.1.0"
 
 __all__ = [
     *_errors_all,

@@ -21,6 +21,7 @@ __all__ = [
     "MeshError",
     "ConvergenceError",
     "CheckpointError",
+    "OutputError",
 ]
 
 
@@ -70,3 +71,7 @@ class ConvergenceError(ShspecError, RuntimeError):
 
 class CheckpointError(ShspecError, OSError):
     """A checkpoint or result file cannot be written, read or resumed from."""
+
+
+class OutputError(ShspecError, OSError):
+    """An output directory or file cannot be created or written (a file in the way, no permission, disk full)."""

@@ -1,9 +1,27 @@
-"""The one interface the inverse solver sees: a fixed stiffness and a mass matrix linear in the parameters.
+"""The one interface the inverse solver sees: a fixed stiffness, a mass matrix in the parameters, and what a fit needs
+to know about them.
 
-Both discretizations of shspec fit it.  In the harmonic basis the parameters are the coefficients a_k of ρ and
-M(a) = Σ_k a_k G_k; on a triangle mesh they are per-vertex conformal factors c and M(c) = diag(c) M_lumped.  In both
-cases ∂λ_i/∂p_j = −λ_i v_iᵀ (∂M/∂p_j) v_i for M-orthonormal eigenvectors, so a model only has to say how to solve and
-how to contract eigenvector products against ∂M/∂p.
+Both discretizations of shspec implement it.  In the harmonic basis the parameters are the coefficients a_k of ρ and
+M(a) = Σ_k a_k G_k (:class:`~shspec.galerkin.HarmonicModel`); on a triangle mesh they are per-vertex conformal
+factors c and M(c) = diag(c) M_lumped (:class:`~shspec.mesh.MeshModel`).  In both cases
+∂λ_i/∂p_j = −λ_i v_iᵀ (∂M/∂p_j) v_i for M-orthonormal eigenvectors, so a model only has to say how to solve and how
+to contract eigenvector products against ∂M/∂p.
+
+A fit asks more of a model, and everything that differs between discretizations lives here rather than in
+:mod:`shspec.inverse`:
+
+* the *variables* the optimizer moves: :meth:`SpectralModel.free_parameters` (the gauge: which parameters are free)
+  and :attr:`SpectralModel.transform` (p = u, or p = exp(u) for positive per-vertex factors);
+* :meth:`~SpectralModel.random_start`, :meth:`~SpectralModel.regularizer` (on the variables u);
+* *levels*, coarse to fine, that a schedule may restrict a stage to (:meth:`~SpectralModel.levels`,
+  :meth:`~SpectralModel.restrict`, :meth:`~SpectralModel.enter_level`): the factor's degree for harmonic models,
+  none for meshes;
+* :meth:`~SpectralModel.invariant` (what tells two solutions apart up to the spectrum's symmetries),
+  :meth:`~SpectralModel.escape_moves` (moves between local minima that keep the invariant),
+  :meth:`~SpectralModel.to_factor` (the parameters as a harmonic ρ), :meth:`~SpectralModel.compare` and
+  :meth:`~SpectralModel.figures` (model-specific comparison with a known truth), :meth:`~SpectralModel.describe`.
+
+A third discretization implements this class and touches no file of :mod:`shspec.inverse`.
 """
 
 from __future__ import annotations
@@ -13,7 +31,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Spectrum", "SpectralModel"]
+from .checks import check_float
+from .errors import InvalidArgumentError
+
+__all__ = ["Spectrum", "SpectralModel", "TRANSFORMS", "regularization_weight"]
+
+#: How the optimizer's variables u map to the model's parameters p: "identity" (p = u) or "exp" (p = exp(u), for
+#: parameters that must stay positive and span decades, such as per-vertex conformal factors).
+TRANSFORMS = ("identity", "exp")
 
 
 @dataclass(frozen=True)
@@ -39,6 +64,10 @@ class SpectralModel(ABC):
 
     #: number of parameters p that the mass matrix depends on (linearly)
     nparams: int
+    #: map from the optimizer's variables u to the parameters p, one of :data:`TRANSFORMS`
+    transform: str = "identity"
+
+    # -- the forward problem ----------------------------------------------------------------------------------------
 
     @abstractmethod
     def spectrum(self, params: np.ndarray, k: int) -> Spectrum:
@@ -60,3 +89,83 @@ class SpectralModel(ABC):
         w = np.ones(target.size) if weights is None else np.asarray(weights, dtype=float)
         r = spec.eigenvalues - target
         return 0.5 * float(np.sum(w * r * r)), self.contract(spec, w * r), spec
+
+    # -- what a fit needs --------------------------------------------------------------------------------------------
+
+    @abstractmethod
+    def describe(self) -> str:
+        """A short, stable description ("harmonic Lb=30 La=15"): printed, and part of a checkpoint's fingerprint."""
+
+    @abstractmethod
+    def free_parameters(self, fit_area: bool) -> np.ndarray:
+        """Indices (nfree,) of the parameters a fit moves (the gauge fixes the others); ``fit_area``: whether the
+        overall scale is free (models whose parameters fix the area only implicitly may ignore it)."""
+
+    @abstractmethod
+    def random_start(self, rng: np.random.Generator, amplitude: float, area: float, level: int | None = None,
+                     ) -> np.ndarray:
+        """A random symmetry-broken, valid start (nparams,) of the given total ``area``, of relative size
+        ``amplitude``, restricted to ``level`` (see :meth:`levels`)."""
+
+    @abstractmethod
+    def regularizer(self, reg: float):
+        """The square root D of the regularizer, ½‖D u‖² on the variables u, as a sparse (nrows, nparams) matrix, or
+        None for ``reg`` = 0."""
+
+    def levels(self) -> tuple[int, ...]:
+        """Levels, coarse to fine, that a stage may restrict the model to (empty: none)."""
+        return ()
+
+    def level_numeig(self, level: int) -> int:
+        """How many eigenvalues overdetermine the parameters of ``level`` (a schedule's count for that stage)."""
+        raise InvalidArgumentError(f"{self.describe()} has no levels")
+
+    def restrict(self, level: int | None) -> "SpectralModel":
+        """The model restricted to ``level`` (None: the model itself); its parameters are a prefix of this model's
+        (see :meth:`to_level`)."""
+        if level is None:
+            return self
+        raise InvalidArgumentError(f"{self.describe()} has no levels (a stage asked for level {level})")
+
+    def to_level(self, params: np.ndarray, level: int | None) -> np.ndarray:
+        """The parameters of :meth:`restrict` (level) taken from full parameters (nparams,)."""
+        return np.asarray(params, dtype=float)[:self.restrict(level).nparams]
+
+    def from_level(self, sub_params: np.ndarray, params: np.ndarray, level: int | None) -> np.ndarray:
+        """Full parameters (nparams,): ``params`` with the part of ``level`` replaced by ``sub_params``."""
+        out = np.array(params, dtype=float)
+        out[:self.restrict(level).nparams] = sub_params
+        return out
+
+    def enter_level(self, params: np.ndarray, old: int | None, new: int | None, rng: np.random.Generator,
+                    amplitude: float) -> np.ndarray:
+        """Parameters at the start of a stage that raises the level from ``old`` to ``new``: the parameters the new
+        level adds may need a small random perturbation (to leave a symmetric saddle).  Default: unchanged."""
+        return params
+
+    def invariant(self, params: np.ndarray, level: int | None = None) -> np.ndarray:
+        """What identifies a solution up to the spectrum's symmetries (default: the parameters themselves)."""
+        return np.asarray(params, dtype=float)
+
+    def escape_moves(self, params: np.ndarray, level: int | None = None) -> list:
+        """Parameter vectors (nparams,) that keep :meth:`invariant` but may lie in another basin (basin hops).
+        Default: none."""
+        return []
+
+    def to_factor(self, params: np.ndarray):
+        """The parameters as a harmonic :class:`~shspec.sphere.factor.ConformalFactor` (for alignment with a truth,
+        and for plots)."""
+        raise InvalidArgumentError(f"{self.describe()} cannot express its parameters as a harmonic rho")
+
+    def compare(self, params: np.ndarray, target) -> dict:
+        """Model-specific errors against what the target knows of its truth (JSON-ready); default: none."""
+        return {}
+
+    def figures(self, params: np.ndarray, target) -> dict:
+        """Model-specific figures of a fit, {file name: matplotlib Figure}; default: none."""
+        return {}
+
+
+def regularization_weight(reg) -> float:
+    """A regularization weight R as a float, checked to be finite and ≥ 0 (InvalidArgumentError otherwise)."""
+    return check_float(reg, "the regularization weight", minimum=0.0)

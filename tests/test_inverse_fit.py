@@ -12,11 +12,14 @@ matplotlib.use("Agg")
 import numpy as np
 import pytest
 
-from shspec import HarmonicModel
+from shspec import ConformalFactor, HarmonicModel
+from shspec.errors import InvalidArgumentError
 from shspec.cli import main
-from shspec.inverse import FitOptions, Stage, align, blob_factor, fit, harmonic_target, random_centred_coefficients
+from shspec.inverse import FitOptions, Stage, align, blob_factor, fit, harmonic_target
+from shspec.sphere.random import random_centred_coefficients
 from shspec.inverse import optimize as optimize_module
-from shspec.inverse.energy import Objective, eigenvalue_weights, harmonic_free_indices
+from shspec.inverse.energy import Objective, eigenvalue_weights
+from shspec.inverse.parametrization import Parametrization
 from shspec.inverse.optimize import make_optimizer
 from shspec.sphere.rotate import mirror_coefficients, power_spectrum
 
@@ -27,7 +30,7 @@ def recovered():
     """Lb = 20, La = 4, 120 eigenvalues; the best of three symmetry-broken starts."""
     truth = random_centred_coefficients(1, 4, 0.15)
     target = harmonic_target(truth, 20, 120)
-    result = fit(target, HarmonicModel(20, 4), FitOptions(starts=3, seed=1))
+    result = fit(target, HarmonicModel(20, 4), FitOptions(starts=3, seed=1, schedule=(), basin_hops=0))
     return truth, target, result
 
 
@@ -50,13 +53,21 @@ def test_mirror_image_is_a_match(recovered):
     assert max(direct.relative_error, mirrored.relative_error) <= 1e-6
 
 
-def test_distinct_solutions_are_reported(recovered):
-    _, _, result = recovered
-    energies = [result.starts[i].energy for i in result.solutions]
-    assert energies == sorted(energies)
-    failed = [s for s in result.starts if not s.success]
-    if failed:  # each local minimum that is not the truth is listed too, not just the best
-        assert len(result.solutions) >= 2
+def test_distinct_solutions_group_starts_by_energy_and_invariant():
+    from shspec.inverse import StartResult, distinct_solutions
+
+    model = HarmonicModel(8, 4)
+    a = random_centred_coefficients(3, 4, 0.2)
+    b = random_centred_coefficients(4, 4, 0.2)
+
+    def start(i, params, energy):
+        return StartResult(i, params, energy, 0.0, 0, 0.0, "x", np.zeros((1, 3)), np.zeros(2))
+
+    turned = model.escape_moves(a)[0]  # a half-turn of one degree block: the same per-degree power as a
+    starts = [start(0, b, 3e-3), start(1, a, 1e-3), start(2, turned, 1e-3 * (1 + 1e-7)), start(3, a, 2e-3)]
+    # 1 and 2: same energy and invariant, one solution; 3 has another energy; 0 another invariant and energy
+    assert distinct_solutions(starts, model, 1e-4) == [1, 3, 0]
+    assert distinct_solutions(starts, model, 1e-9) == [1, 2, 3, 0]
 
 
 @pytest.fixture(scope="module")
@@ -67,12 +78,13 @@ def small():
 
 def test_fit_is_deterministic_under_a_seed(small):
     target, model = small
-    opts = FitOptions(starts=2, seed=5, max_iter=4, schedule=(Stage(2), Stage(4), Stage(6)))
+    opts = FitOptions(starts=2, seed=5, max_iter=4, schedule=(Stage(2), Stage(4), Stage(6)), basin_hops=1,
+                      hop_iter=2)
     r1, r2 = fit(target, model, opts), fit(target, model, opts)
     for a, b in zip(r1.starts, r2.starts):
         np.testing.assert_array_equal(a.params, b.params)
         np.testing.assert_array_equal(a.history, b.history)
-    other = fit(target, model, FitOptions(starts=1, seed=6, max_iter=4, schedule=opts.schedule))
+    other = fit(target, model, FitOptions(starts=1, seed=6, max_iter=4, schedule=opts.schedule, basin_hops=0))
     assert not np.array_equal(other.starts[0].params, r1.starts[0].params)
 
 
@@ -92,30 +104,51 @@ def test_degree_ramp_raises_degree_and_count_together():
     assert [(s.lmax_factor, s.numeig) for s in stages] == [(2, 16), (3, 25), (4, 36), (5, 49), (6, 64), (6, 100),
                                                            (6, 120)]
     assert [(s.lmax_factor, s.numeig) for s in degree_ramp(20, 6)] == [(2, 16), (6, 20)]
-    FitOptions(schedule=degree_ramp(300, 15))  # degrees never decrease
+    big = degree_ramp(300, 15)
+    degrees_ = [s.lmax_factor for s in big]
+    assert degrees_ == sorted(degrees_) and degrees_[-1] == 15 and big[-1].numeig == 300
+    assert all(s.numeig > (s.lmax_factor + 1) ** 2 for s in big)  # every stage overdetermined
+    with pytest.raises(InvalidArgumentError):
+        FitOptions(schedule=(Stage(6), Stage(4)))
 
 
-def test_basin_hops_only_lower_the_energy_and_keep_the_gauge(small):
-    from shspec.inverse.schedule import _block_moves
+def test_escape_moves_keep_power_and_gauge_and_undo_themselves():
+    model = HarmonicModel(8, 6)
+    a = blob_factor().coefficients
+    moves = model.escape_moves(a)
+    assert len(moves) == 3 * 5 + 4 * 2  # three half-turns per block l = 2..6, four more (signs) for l = 3 and 5
+    for q in moves:
+        np.testing.assert_allclose(power_spectrum(q), power_spectrum(a), rtol=1e-12, atol=1e-15)
+        assert np.all(q[1:4] == 0) and q[0] == a[0]
+    # a half-turn applied twice is the identity: the moves of a moved state include the original
+    assert min(np.max(np.abs(q - a)) for q in model.escape_moves(moves[4])) < 1e-13
+
+
+def test_basin_hop_is_accepted_and_leaves_a_wrongly_turned_block(small):
+    """A state whose degree-3 block is half-turned has the right power but the wrong spectrum; one hop returns it
+    to the truth (the move back is the one of lowest energy, and its refit reaches rounding)."""
+    from shspec.inverse.schedule import FitProblem, StartProgress, _basin_hop
 
     target, model = small
-    sched = (Stage(2, 9), Stage(6))
-    plain = fit(target, model, FitOptions(starts=1, max_iter=4, schedule=sched))
-    hopped = fit(target, model, FitOptions(starts=1, max_iter=4, schedule=sched, basin_hops=1, hop_iter=2))
-    assert hopped.best.energy <= plain.best.energy
-    assert hopped.best.iterations >= plain.best.iterations
-    assert np.all(hopped.best.params[1:4] == 0)
-    # Every move keeps the per-degree power (a rotation invariant) and the gauge.
-    for q in _block_moves(plain.best.params, 6):
-        assert np.allclose(power_spectrum(q), power_spectrum(plain.best.params))
-        assert np.all(q[1:4] == 0) and q[0] == plain.best.params[0]
+    truth = blob_factor().coefficients
+    wrong = model.escape_moves(truth)[3]  # the half-turn about z of the degree-3 block
+    problem = FitProblem(model, target, FitOptions(starts=1, max_iter=20, schedule=(Stage(),), basin_hops=1,
+                                                   hop_iter=3))
+    obj = problem.objective(0, wrong)
+    ev = obj.evaluate(obj.initial())
+    assert ev.relative_residual > 1e-4
+    progress = StartProgress(0, 0, wrong, None, params=wrong, energy=ev.energy,
+                             relative_residual=ev.relative_residual, eigenvalues=ev.eigenvalues)
+    _basin_hop(problem, progress, "energy_tol")
+    assert progress.relative_residual < 1e-10
+    assert align(ConformalFactor(progress.params), truth).relative_error < 1e-8
 
 
 @pytest.mark.parametrize("optimizer", ["lm", "lbfgs", "gd"])
 def test_resume_from_checkpoint_equals_uninterrupted_run(small, tmp_path, monkeypatch, optimizer):
     target, model = small
     opts = FitOptions(starts=2, seed=3, max_iter=5, optimizer=optimizer, schedule=(Stage(4), Stage(6)),
-                      checkpoint_every=2, checkpoint_path=str(tmp_path / "ck.h5"))
+                      basin_hops=1, hop_iter=2, checkpoint_every=2, checkpoint_path=str(tmp_path / "ck.h5"))
     reference = fit(target, model, FitOptions(**{**opts.__dict__, "checkpoint_every": 0, "checkpoint_path": None}))
 
     cls = optimize_module._CLASSES[optimizer]
@@ -145,7 +178,7 @@ def test_positivity_safeguard_never_crashes():
     start = np.zeros(25)
     start[0] = np.sqrt(4 * np.pi)
     start[6] = 1.1  # a_20 close to making ρ negative at the poles
-    obj = Objective(model, target, eigenvalue_weights(target, "absolute"), start, harmonic_free_indices(4, False))
+    obj = Objective(model, target, eigenvalue_weights(target, "absolute"), Parametrization(start, model.free_parameters(False)))
     for name in ("lm", "gd", "bfgs"):
         opt = make_optimizer(name, obj, obj.initial(), FitOptions(optimizer=name))
         energies = [opt.ev.energy]
@@ -153,8 +186,6 @@ def test_positivity_safeguard_never_crashes():
             opt.step()
             energies.append(opt.ev.energy)
         assert np.all(np.diff(energies) <= 0)
-        from shspec import ConformalFactor
-
         assert ConformalFactor(obj.params(opt.x)).minimum().value > 0
 
 
@@ -168,7 +199,7 @@ def test_pl_recovery_error_grows_with_amplitude():
     for p in (0.2, 0.8):
         target = mesh_target(star_surface(3, 3, p, subdivisions=2), lmax=8, numeig=40, lmax_factor=4)
         model = MeshModel(target.sphere)
-        r = fit(target, model, FitOptions(starts=1, max_iter=25, reg=1e-4, start_amplitude=0.02))
+        r = fit(target, model, FitOptions(starts=1, max_iter=25, reg=1e-4, start_amplitude=0.02, schedule=()))
         w = model.vertex_areas
         errors.append(np.sqrt(w @ (r.best.params - target.factors) ** 2 / (w @ target.factors ** 2)))
     assert errors[1] > errors[0]
@@ -191,12 +222,33 @@ def test_cli_fit_writes_summary_result_and_figures(tmp_path):
 
 
 def test_cli_degree_ramp_with_basin_hops(tmp_path):
-    import json
-
-    from shspec.cli import main
+    from shspec.inverse import default_schedule, degree_ramp, load_result_summary
 
     assert main(["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "1",
                  "--max-iter", "5", "--schedule", "degree-ramp", "--basin-hops", "1", "--out", str(tmp_path),
                  "--quiet"]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert len(summary["starts"]) == 1 and summary["relative_residual"] < 1e-2
+    stages = [(s["lmax_factor"], s["numeig"]) for s in summary["options"]["schedule"]]
+    assert stages == [(s.lmax_factor, s.numeig) for s in degree_ramp(20, 6)]
+    assert summary["options"]["basin_hops"] == 1
+    history = load_result_summary(tmp_path / "result.h5")["starts"][0].history
+    assert sorted(set(history[:, 0].astype(int))) == list(range(len(stages)))  # every stage ran
+    # the command line's default schedule is the library's
+    assert default_schedule(HarmonicModel(8, 6), 20) == degree_ramp(20, 6)
+    assert FitOptions().schedule is None and FitOptions().basin_hops == 4
+
+
+def test_cli_mesh_fit_with_default_schedule(tmp_path):
+    """The command line's defaults work for a mesh model too (the numeig ramp, no levels), and the summary holds
+    the per-vertex comparison with the cMCF factors."""
+    out = tmp_path / "mesh"
+    assert main(["fit", "--target", "star:3,3,0.2", "--subdivisions", "2", "--model", "mesh", "--lmax", "8",
+                 "--lmax-factor", "4", "--numeig", "20", "--starts", "1", "--max-iter", "3", "--out", str(out),
+                 "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["model"].startswith("mesh n=162")
+    assert summary["options"]["schedule"] is None
+    for key in ("factor_error", "log_rms", "log_correlation", "fitted_range", "truth_range"):
+        assert key in summary
+    for name in ("vertex_factors.png", "validation.png", "history.png"):
+        assert (out / name).stat().st_size > 0

@@ -11,7 +11,7 @@ from shspec.errors import InvalidArgumentError
 from shspec.sphere.rotate import mirror_coefficients, power_spectrum
 from shspec.inverse.options import Stage, parse_schedule
 from shspec.inverse.schedule import numeig_ramp
-from shspec.inverse.targets import (Target, blob_factor, estimate_area, parse_target, read_spectrum)
+from shspec.targets import (Target, blob_factor, estimate_area, parse_target, read_spectrum)
 
 
 def test_blob_is_centred_positive_asymmetric():
@@ -71,3 +71,30 @@ def test_schedule_syntax():
         with pytest.raises(InvalidArgumentError):
             parse_schedule(text)
     assert [s.numeig for s in numeig_ramp(120)] == [16, 36, 64, 100, 120]
+
+
+def test_read_spectrum_takes_the_last_column_and_names_bad_values(tmp_path):
+    import warnings
+
+    from shspec.inverse import parse_target, read_spectrum
+
+    two = tmp_path / "two.txt"  # what `shspec mesh-spectrum M > two.txt` prints: index and eigenvalue
+    two.write_text("    0  0\n    1  2.5\n    2  2.5\n    3  7\n")
+    np.testing.assert_array_equal(read_spectrum(two), [0.0, 2.5, 2.5, 7.0])
+    nan = tmp_path / "nan.txt"
+    nan.write_text("0\n1\nnan\n3\n")
+    with pytest.raises(InvalidArgumentError, match=r"nan.txt: eigenvalue 2 is nan"):
+        read_spectrum(nan)
+    empty = tmp_path / "empty.txt"
+    empty.write_text("# nothing\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's "empty input file" warning must not leak
+        with pytest.raises(InvalidArgumentError, match="empty.txt holds no eigenvalues"):
+            read_spectrum(empty)
+    unsorted = tmp_path / "unsorted.txt"
+    unsorted.write_text("0\n2\n6\n5\n")
+    with pytest.raises(InvalidArgumentError, match=r"unsorted.txt is not ascending: eigenvalue 3 \(5\)"):
+        read_spectrum(unsorted)
+    # --numeig is honoured for spectrum files: the first K eigenvalues, lambda_0 included
+    target = parse_target(f"spectrum:{two}", lmax=8, numeig=3, lmax_factor=4)
+    np.testing.assert_array_equal(target.eigenvalues, [0.0, 2.5, 2.5])

@@ -19,7 +19,10 @@ from typing import Callable
 
 import numpy as np
 
+from .._version import __version__
 from ..errors import InvalidArgumentError
+from ..io import ensure_directory, write_csv
+from ..report import experiment_markdown
 
 __all__ = ["Experiment", "Finding", "EXPERIMENTS", "register", "run_experiment", "load_config"]
 
@@ -91,35 +94,15 @@ def _merge(base: dict, override: dict, name: str) -> dict:
     return out
 
 
-def _write_csv(path: Path, rows: list[dict]) -> None:
-    import csv
-
-    with open(path, "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-
-
-def _fmt(value) -> str:
-    if isinstance(value, float):
-        return f"{value:.3g}"
-    return str(value)
-
-
 def run_experiment(name: str, out, *, config_path=None, quick: bool = False, progress: bool = True) -> Path:
     """Run experiment ``name`` into the folder ``out``; returns the path of its ``report.md``."""
-    from .. import __version__
-
     if name not in EXPERIMENTS:
         raise InvalidArgumentError(f"no experiment {name!r}; available: {', '.join(sorted(EXPERIMENTS))}")
     exp = EXPERIMENTS[name]
     config = dict(exp.quick if quick else exp.defaults)
     if config_path is not None:
         config = _merge(config, load_config(config_path), name)
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InvalidArgumentError(f"the output {out} is a file")
-    out.mkdir(parents=True, exist_ok=True)
+    out = ensure_directory(out)
     (out / "config.json").write_text(json.dumps({"experiment": name, "quick": quick, **config}, indent=1))
     if config_path is not None:
         shutil.copy(config_path, out / "config.toml")
@@ -131,27 +114,16 @@ def run_experiment(name: str, out, *, config_path=None, quick: bool = False, pro
     seconds = time.perf_counter() - start
     for table, rows in finding.tables.items():
         if rows:
-            _write_csv(out / f"{table}.csv", rows)
+            write_csv(out / f"{table}.csv", rows)
     meta = {"experiment": name, "title": exp.title, "reproduces": exp.reproduces, "quick": quick,
             "seconds": seconds, "shspec_version": __version__, "numpy": np.__version__,
             "python": platform.python_version(), "machine": platform.platform(),
             "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"), "numbers": finding.numbers}
     (out / "meta.json").write_text(json.dumps(meta, indent=1, default=float))
-    lines = [f"# {exp.title}", "", f"*Reproduces:* {exp.reproduces}. *Run:* `shspec experiment {name}"
-             f"{' --quick' if quick else ''}`, {seconds:.1f} s, shspec {__version__}.", "", "## Finding", "",
-             finding.summary, ""]
-    for fig in finding.figures:
-        lines += [f"![{fig}]({fig})", ""]
-    for table, rows in finding.tables.items():
-        if not rows:
-            continue
-        keys = list(rows[0])
-        lines += [f"## {table}", "", "| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
-        lines += ["| " + " | ".join(_fmt(r[k]) for k in keys) + " |" for r in rows]
-        lines.append("")
-    lines += ["## Parameters", "", "```json", json.dumps(config, indent=1), "```", ""]
+    text = experiment_markdown(name, exp.title, exp.reproduces, quick, seconds, __version__, finding.summary,
+                               finding.figures, finding.tables, config)
     report = out / "report.md"
-    report.write_text("\n".join(lines))
+    report.write_text(text)
     if progress:
         print(f"{name}: done in {seconds:.1f} s; report {report}")
     return report

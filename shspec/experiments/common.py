@@ -5,19 +5,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..sphere.factor import ConformalFactor
-from ..sphere.harmonics import degrees
+from ..sphere.random import random_coefficients
 
 
 def centred_random_factor(lmax_factor: int, amplitude: float, seed: int) -> ConformalFactor:
-    """A smooth random ρ of area 4π with a_1m = 0 (Möbius-centred gauge) and coefficients decaying like 1/(1+l).
+    """A smooth random ρ of area 4π with a_1m = 0 (Möbius-centred gauge), drawn by the one law of
+    :func:`~shspec.sphere.random.random_coefficients` (degree l's RMS ∝ 1/l).
 
-    ``amplitude`` is the RMS of the non-constant part relative to the mean; the result is checked to be positive.
+    ``amplitude`` is the RMS of the non-constant part relative to the mean (exactly: the draw is rescaled to it);
+    the result is checked to be positive.
     """
-    rng = np.random.default_rng(seed)
-    l = degrees(lmax_factor)
-    a = rng.standard_normal(l.size) / (1.0 + l)
-    a[l == 1] = 0.0
-    a[0] = 0.0
+    a = random_coefficients(np.random.default_rng(seed), lmax_factor, 1.0)
     a *= amplitude * np.sqrt(4 * np.pi) / np.linalg.norm(a)
     a[0] = np.sqrt(4 * np.pi)
     rho = ConformalFactor(a, name=f"random(La={lmax_factor}, seed={seed})")

@@ -13,7 +13,12 @@ import time
 import warnings
 from contextlib import contextmanager
 
+import h5py
 import numpy as np
+
+from ..inverse import align
+from ..mesh.bridge import fit_harmonic, mesh_band_limit
+from ..sphere.rotate import power_spectrum
 
 __all__ = ["single_threaded", "Progress", "vertex_factor_errors", "spectral_residuals", "harmonic_errors",
            "write_h5", "spearman"]
@@ -87,11 +92,7 @@ def harmonic_errors(sphere, fitted, truth, lmax_factor: int, *, aligned: bool = 
     ``aligned_error`` (only if ``aligned``): relative L2 error after Möbius centering and the best element of O(3)
     (:func:`shspec.inverse.align`; measured 15-20 s per call on this loaded machine at La = 6, hence optional).
     """
-    from ..inverse import align
-    from ..sphere.rotate import power_spectrum
-    from ..mesh.bridge import fit_harmonic
-
-    la = min(int(lmax_factor), int(np.sqrt(sphere.nvertices / 2)) - 1)
+    la = mesh_band_limit(sphere.nvertices, lmax_factor)
     a = fit_harmonic(sphere, fitted, la).coefficients
     b = fit_harmonic(sphere, truth, la).coefficients
     pa, pb = power_spectrum(a), power_spectrum(b)
@@ -103,8 +104,6 @@ def harmonic_errors(sphere, fitted, truth, lmax_factor: int, *, aligned: bool = 
 
 def write_h5(path, groups: dict) -> None:
     """HDF5 file with one group per key, one dataset per array (scalars and strings as attributes)."""
-    import h5py
-
     with h5py.File(path, "w") as f:
         for name, items in groups.items():
             g = f.create_group(str(name))

@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..galerkin.solver import HarmonicModel
+from ..inverse import FitOptions, Objective, Parametrization, eigenvalue_weights
+from ..inverse.optimize import make_optimizer
 from ..sphere.harmonics import degrees
 from .base import Experiment, Finding, register
 from .common import centred_random_factor, figure, save_figure
@@ -45,9 +47,6 @@ def analyse(model: HarmonicModel, coef: np.ndarray, k: int, rank_tol: float) -> 
 
 def noisy_fits(cfg: dict, model: HarmonicModel, coef: np.ndarray, progress: bool) -> tuple[list, dict]:
     """Fits of noisy spectra started at the truth; rows of observed against predicted errors of ρ."""
-    from ..inverse import FitOptions, Objective, eigenvalue_weights
-    from ..inverse.optimize import make_optimizer
-
     k = cfg["fit_numeig"]
     lin = analyse(model, coef, k, cfg["rank_tol"])
     lam = lin["eigenvalues"]
@@ -55,13 +54,13 @@ def noisy_fits(cfg: dict, model: HarmonicModel, coef: np.ndarray, progress: bool
     draw[0] = 0.0
     free = np.flatnonzero(lin["free"])
     norm = np.linalg.norm(coef)
-    options = FitOptions(max_iter=cfg["fit_max_iter"], residual_tol=1e-15, energy_tol=1e-10)
+    options = FitOptions(schedule=(), basin_hops=0, max_iter=cfg["fit_max_iter"], residual_tol=1e-15, energy_tol=1e-10)
     rows = []
     bar = Progress(progress, len(cfg["fit_noise_levels"]), "identifiability fits")
     for eps in cfg["fit_noise_levels"]:
         noisy = np.sort(lam * (1.0 + eps * draw))
         noisy[0] = 0.0
-        obj = Objective(model, noisy, eigenvalue_weights(noisy, "absolute"), coef, free)
+        obj = Objective(model, noisy, eigenvalue_weights(noisy, "absolute"), Parametrization(coef, free))
         opt = make_optimizer("lm", obj, obj.initial(), options)
         while opt.status is None and opt.iteration < options.max_iter:
             opt.step()

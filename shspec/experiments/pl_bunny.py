@@ -52,7 +52,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
             mesh = _load(cfg["mesh_dir"], name)
             target = mesh_target(mesh, 12, k, 6, name=name)
             model = MeshModel(target.sphere)
-            result = fit(target, model, FitOptions(starts=1, max_iter=cfg["max_iter"], reg=reg, seed=cfg["seed"]))
+            result = fit(target, model, FitOptions(schedule=(), starts=1, max_iter=cfg["max_iter"], reg=reg, seed=cfg["seed"]))
             best = result.best
             err = vertex_factor_errors(model.vertex_areas, best.params, target.factors)
             cm = spectral_residuals(model.spectrum(target.factors, k).eigenvalues, target.eigenvalues)
@@ -102,7 +102,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
             flow = cmcf(e1.mesh)
             target2 = Target(f"{name} (recursive)", target.eigenvalues, area=target.area, source="pl")
             model2 = MeshModel(flow.sphere)
-            result2 = fit(target2, model2, FitOptions(starts=1, max_iter=cfg["max_iter"], reg=reg, seed=cfg["seed"]))
+            result2 = fit(target2, model2, FitOptions(schedule=(), starts=1, max_iter=cfg["max_iter"], reg=reg, seed=cfg["seed"]))
             c2 = result2.best.params
             spectra["recursive fit"] = result2.best.eigenvalues
             bar.step(f"recursive fit: residual {result2.best.relative_residual:.2e}")

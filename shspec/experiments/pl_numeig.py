@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..inverse import FitOptions, Stage, fit, mesh_target
-from ..inverse.plots import plot_factors
+from ..mesh.figures import plot_vertex_factors
 from ..mesh import MeshModel, star_surface
 from .base import Experiment, Finding, register
 from .common import figure, save_figure
@@ -75,7 +75,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
     axes[1].legend(fontsize=8)
     axes[1].grid(True, which="both", alpha=0.3)
     save_figure(fig, out / "error_vs_numeig.png")
-    fig = plot_factors(results[-1])
+    fig = plot_vertex_factors(results[-1].model.mesh, results[-1].best.params, results[-1].target.factors)
     fig.suptitle(f"K = {ks[-1]}: cMCF factors, fitted factors, difference")
     save_figure(fig, out / "factors_largest_k.png")
 

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..embed import render_mesh
 from ..inverse import FitOptions, fit, mesh_target
-from ..inverse.plots import plot_factors
+from ..mesh.figures import plot_vertex_factors
 from ..mesh import MeshModel, star_surface
 from .base import Experiment, Finding, register
 from .common import figure, save_figure
@@ -24,7 +25,7 @@ from .fitting import (Progress, harmonic_errors, single_threaded, spearman, spec
 
 def run(cfg: dict, out, progress: bool) -> Finding:
     l, m, k = cfg["l"], cfg["m"], cfg["numeig"]
-    opts = FitOptions(starts=cfg["starts"], max_iter=cfg["max_iter"], reg=cfg["reg"], seed=cfg["seed"])
+    opts = FitOptions(schedule=(), starts=cfg["starts"], max_iter=cfg["max_iter"], reg=cfg["reg"], seed=cfg["seed"])
     rows, h5, meshes, results = [], {}, [], []
     bar = Progress(progress, len(cfg["p_values"]), "pl-perturbation")
     with single_threaded():
@@ -80,9 +81,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
 
     import matplotlib.pyplot as plt
 
-    from ..embed import render_mesh
-
-    fig = plot_factors(results[-1])
+    fig = plot_vertex_factors(results[-1].model.mesh, results[-1].best.params, results[-1].target.factors)
     fig.suptitle(f"p = {ps[-1]:g}: cMCF factors, fitted factors, difference (Hammer projection)")
     save_figure(fig, out / "factors_largest_p.png")
     fig = plt.figure(figsize=(3.2 * len(meshes), 3.4))

@@ -46,9 +46,9 @@ def _structured(text: str, budget: int, numeig: int, lmax_factor: int) -> tuple:
 def run(cfg: dict, out, progress: bool) -> Finding:
     lb, la, k = cfg["lmax"], cfg["lmax_factor"], cfg["numeig"]
     budget = cfg["max_iter"]
-    base = dict(starts=cfg["starts"], seed=cfg["seed"], max_iter=budget)
-    fits = {"raw": FitOptions(**base),
-            "regularized": FitOptions(**base, reg=cfg["reg"]),
+    base = dict(starts=cfg["starts"], seed=cfg["seed"], max_iter=budget, basin_hops=0)
+    fits = {"raw": FitOptions(**base, schedule=()),
+            "regularized": FitOptions(**base, schedule=(), reg=cfg["reg"]),
             "structured": FitOptions(**base, schedule=_structured(cfg["schedule"], budget, k, la))}
     bar = Progress(progress, len(fits), "sh-inverse")
     rows, results, alignments = [], {}, {}

@@ -14,9 +14,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InvalidArgumentError
+from ..mesh.model import MeshModel
+from ..mesh.shapes import icosphere
+from ..sphere.evaluate import sample_harmonic
 from ..sphere.factor import ConformalFactor, as_factor
-from .solver import HarmonicModel
 from ..sphere.harmonics import check_degree
+from .solver import HarmonicModel
 
 __all__ = ["ConvergenceStudy", "convergence", "convergence_in_factor", "pl_spectrum_of_factor"]
 
@@ -187,10 +190,6 @@ def pl_spectrum_of_factor(rho, k: int, subdivisions: int = 4) -> np.ndarray:
     The piecewise-linear counterpart of the harmonic spectrum of the same metric; it is the reference the study
     compares the harmonic one with (its Section 3.3).
     """
-    from ..sphere.evaluate import sample_harmonic
-    from ..mesh.model import MeshModel
-    from ..mesh.shapes import icosphere
-
     factor = rho if isinstance(rho, ConformalFactor) else as_factor(rho)
     sphere = icosphere(subdivisions)
     c = sample_harmonic(factor.coefficients, sphere.vertices)

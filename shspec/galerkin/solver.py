@@ -18,13 +18,17 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 import scipy.linalg
+import scipy.sparse as sp
 
-from ..gaunt.cache import get_table
+from ..checks import check_int
 from ..errors import BandLimitError, InvalidArgumentError, NotPositiveError
+from ..gaunt.cache import get_table
+from ..gaunt.table import GauntTable
+from ..model import SpectralModel, Spectrum, regularization_weight
 from ..sphere.factor import ConformalFactor, as_factor
 from ..sphere.harmonics import check_degree, degrees, ncoeffs
-from ..model import SpectralModel, Spectrum
-from ..gaunt.table import GauntTable
+from ..sphere.random import random_coefficients
+from ..sphere.rotate import power_spectrum, rotate_coefficients
 
 __all__ = ["HarmonicModel", "SpectrumResult", "spectrum"]
 
@@ -99,6 +103,7 @@ class HarmonicModel(SpectralModel):
         self.check_positive = bool(check_positive)
         ls = degrees(lmax)[1:].astype(float)
         self._dinv = 1.0 / np.sqrt(ls * (ls + 1.0))
+        self._restricted: dict[int, HarmonicModel] = {}
 
     def __repr__(self) -> str:
         return f"HarmonicModel(lmax={self.lmax}, lmax_factor={self.lmax_factor})"
@@ -122,8 +127,7 @@ class HarmonicModel(SpectralModel):
     def spectrum(self, params, k: int) -> SpectrumResult:
         """First k eigenpairs (λ₀ = 0 included) for the factor coefficients ``params`` or a ConformalFactor."""
         a = self._params(params)
-        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
-            raise InvalidArgumentError(f"k must be a positive integer, got {k!r}")
+        k = check_int(k, "k (number of eigenpairs)", minimum=1)
         if k > self.nbasis:
             raise BandLimitError(f"k = {k} eigenpairs asked of a basis of {self.nbasis} functions (Lb = {self.lmax}); "
                                  f"raise lmax to at least {int(np.ceil(np.sqrt(k))) - 1}")
@@ -165,6 +169,113 @@ class HarmonicModel(SpectralModel):
         v = spec.eigenvectors
         b = (v * (coef * spec.eigenvalues)[None, :]) @ v.T
         return -self.table.contract(b)
+
+    # -- what the inverse solver asks of a model (shspec.model.SpectralModel) -------------------------------------
+
+    def describe(self) -> str:
+        return f"harmonic Lb={self.lmax} La={self.lmax_factor}"
+
+    def free_parameters(self, fit_area: bool) -> np.ndarray:
+        """Every a_lm but the gauge a_1m = 0 (Möbius centering), and a_00 (the area) only if ``fit_area``."""
+        keep = degrees(self.lmax_factor) != 1
+        keep[0] = bool(fit_area)
+        return np.flatnonzero(keep)
+
+    def random_start(self, rng: np.random.Generator, amplitude: float, area: float, level: int | None = None,
+                     ) -> np.ndarray:
+        """a_00 from the area, a_1m = 0, degrees 2 … level random (odd ones included, so that the fit is not
+        trapped in the even subspace, NOTES.md) with RMS ∝ amplitude/l relative to the mean; the amplitude is halved
+        until the minimum of ρ is at least a quarter of its mean."""
+        la = self.lmax_factor if level is None else self.restrict(level).lmax_factor
+        a00 = area / np.sqrt(4 * np.pi)
+        noise = random_coefficients(rng, la, amplitude * a00)
+        params = np.zeros(self.nparams)
+        params[0] = a00
+        for _ in range(30):
+            params[1:ncoeffs(la)] = noise[1:]
+            if _minimum(params) >= 0.25 * a00 / np.sqrt(4 * np.pi):
+                return params
+            noise = noise * 0.5
+        raise InvalidArgumentError("could not draw a positive random start")  # pragma: no cover
+
+    def regularizer(self, reg: float):
+        """D = √(2R) diag(l(l+1)), so that ½‖Da‖² = R‖Δρ‖² = R Σ (l(l+1))² a_lm²."""
+        reg = regularization_weight(reg)
+        if reg == 0:
+            return None
+        l = degrees(self.lmax_factor).astype(float)
+        return sp.diags(np.sqrt(2 * reg) * l * (l + 1)).tocsr()
+
+    def levels(self) -> tuple[int, ...]:
+        """The factor degrees 2 … La (degree 1 is the gauge)."""
+        return tuple(range(2, self.lmax_factor + 1))
+
+    def level_numeig(self, level: int) -> int:
+        """(L + 2)² eigenvalues for degree L: more than the (L + 1)² coefficients, whole sphere clusters."""
+        return (int(level) + 2) ** 2
+
+    def restrict(self, level: int | None) -> "HarmonicModel":
+        """The model of factor degree ``level`` ≤ La on the same basis, sharing (a restriction of) the table."""
+        if level is None or level == self.lmax_factor:
+            return self
+        level = check_degree(level, "level (factor degree)", maximum=self.lmax_factor)
+        if level not in self._restricted:
+            self._restricted[level] = HarmonicModel(self.lmax, level, table=self.table,
+                                                    check_positive=self.check_positive)
+        return self._restricted[level]
+
+    def enter_level(self, params: np.ndarray, old: int | None, new: int | None, rng: np.random.Generator,
+                    amplitude: float) -> np.ndarray:
+        """The degrees old+1 … new get a small random perturbation of RMS ∝ amplitude/l relative to the mean: at an
+        even ρ the gradient along odd degrees is exactly 0 (the parity saddle, NOTES.md)."""
+        old = self.lmax_factor if old is None else old
+        new = self.lmax_factor if new is None else new
+        if new <= old:
+            return params
+        out = np.array(params, dtype=float)
+        noise = random_coefficients(rng, new, amplitude * out[0], low=old + 1)
+        for _ in range(30):
+            out[ncoeffs(old):ncoeffs(new)] = noise[ncoeffs(old):]
+            if _minimum(out[:ncoeffs(new)]) > 0:
+                return out
+            noise = noise * 0.5
+        return params  # pragma: no cover - a positive ρ stays positive under a small enough change
+
+    def invariant(self, params: np.ndarray, level: int | None = None) -> np.ndarray:
+        """Per-degree power Σ_m a_lm² (La+1,): invariant under O(3)."""
+        return power_spectrum(np.asarray(params, dtype=float))
+
+    def escape_moves(self, params: np.ndarray, level: int | None = None) -> list:
+        """Power-preserving moves of one degree block l ≥ 2 (l ≤ level): its half-turns about the z, y and x axes,
+        and for odd l also these composed with the sign −1 and the sign alone (the point reflection of that block).
+
+        The failed fits of the blob end in local minima whose per-degree power is already right (to ~1e-4) while
+        the degree blocks are wrongly placed relative to each other; for even l the mirror z ↦ −z of a block is its
+        half-turn about z, for odd l the negated one.
+        """
+        la = self.lmax_factor if level is None else self.restrict(level).lmax_factor
+        params = np.asarray(params, dtype=float)
+        l_all = degrees(la)
+        moves = []
+        for l in range(2, la + 1):
+            sel = l_all == l
+            sub = np.where(sel, params[:l_all.size], 0.0)
+            turns = [rotate_coefficients(sub, np.array(ang)) for ang in ((np.pi, 0, 0), (0, np.pi, 0),
+                                                                           (np.pi, np.pi, 0))]
+            if l % 2:
+                turns += [-t for t in turns] + [-sub]
+            for turn in turns:
+                q = params.copy()
+                q[:l_all.size][sel] = turn[sel]
+                moves.append(q)
+        return moves
+
+    def to_factor(self, params: np.ndarray) -> ConformalFactor:
+        return ConformalFactor(np.array(params, dtype=float), name="fit")
+
+
+def _minimum(params) -> float:
+    return ConformalFactor(np.array(params)).minimum().value  # a copy: ConformalFactor freezes its array
 
 
 def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: GauntTable | None = None,

@@ -19,7 +19,9 @@ import scipy.optimize
 from scipy.spatial.transform import Rotation
 
 from ..errors import InvalidArgumentError
+from ..sphere.factor import ConformalFactor
 from ..sphere.harmonics import as_coefficients, lmax_of_size, ncoeffs
+from ..sphere.mobius import center_harmonic
 from ..sphere.rotate import rotator, mirror_coefficients, power_spectrum, rotate_coefficients
 
 __all__ = ["Alignment", "align"]
@@ -89,8 +91,6 @@ def align(fit, truth, *, center: bool = True, center_tol: float = 1e-12) -> Alig
     NotPositiveError
         If centering meets a factor that is not positive.
     """
-    from ..sphere.factor import ConformalFactor
-    from ..sphere.mobius import center_harmonic
 
     vecs = [f.coefficients if isinstance(f, ConformalFactor) else as_coefficients(f) for f in (fit, truth)]
     lmax = max(lmax_of_size(v.size) for v in vecs)

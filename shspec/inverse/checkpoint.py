@@ -4,7 +4,9 @@ A checkpoint holds the finished starts and the running one (its stage, the param
 optimizer's state after its last completed iteration and the history), plus a fingerprint of the problem (options
 that change the computation, target spectrum, model).  Resuming checks the fingerprint and continues the running
 start from that state: the optimizers are deterministic, so the result is the one of an uninterrupted run.  Files
-are written to a temporary name and renamed, so a crash while writing never leaves a truncated checkpoint.
+are written to a temporary name, flushed to disk and renamed, so a crash while writing never leaves a truncated
+checkpoint; and every file carries a BLAKE2b checksum of all its datasets and attributes, checked on reading, so a
+damaged file is refused by name instead of silently changing a resumed fit.
 """
 
 from __future__ import annotations
@@ -17,9 +19,12 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+import scipy
 
+from .._version import __version__
 from ..errors import CheckpointError
 from .options import FitOptions, StartResult
+from .schedule import StartProgress
 
 __all__ = ["fingerprint", "save_checkpoint", "load_checkpoint", "save_result", "load_result_summary",
            "CHECKPOINT_FORMAT"]
@@ -34,7 +39,7 @@ _IGNORED = ("checkpoint_every", "checkpoint_path", "progress", "starts")
 def options_dict(options: FitOptions) -> dict:
     """The options as a JSON-ready dict (stages as dicts)."""
     out = dataclasses.asdict(options)
-    out["schedule"] = [dataclasses.asdict(s) for s in options.schedule]
+    out["schedule"] = None if options.schedule is None else [dataclasses.asdict(s) for s in options.schedule]
     return out
 
 
@@ -62,16 +67,63 @@ def _read_start(group: h5py.Group) -> StartResult:
                        eigenvalues=group["eigenvalues"][()], success=bool(a["success"]))
 
 
+def _content_checksum(f: h5py.File) -> str:
+    """BLAKE2b over every dataset (name, dtype, shape, bytes) and attribute (name, value) but the checksum itself."""
+    h = hashlib.blake2b(digest_size=32)
+
+    def feed(name, attrs):
+        for key in sorted(attrs):
+            if key != "checksum":
+                h.update(f"{name}@{key}={np.asarray(attrs[key]).tolist()!r};".encode())
+
+    feed("/", f.attrs)
+    names = []
+    f.visit(names.append)
+    for name in sorted(names):
+        obj = f[name]
+        feed(name, obj.attrs)
+        if isinstance(obj, h5py.Dataset):
+            data = np.ascontiguousarray(obj[()])
+            h.update(f"{name}:{data.dtype.str}:{data.shape};".encode())
+            h.update(data.tobytes())
+    return h.hexdigest()
+
+
 def _atomic(path: Path, write) -> None:
     tmp = path.with_name(path.name + f".tmp{os.getpid()}")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with h5py.File(tmp, "w") as f:
             write(f)
+            f.attrs["checksum"] = _content_checksum(f)
+            f.flush()
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
         os.replace(tmp, path)
     except OSError as exc:
         tmp.unlink(missing_ok=True)
         raise CheckpointError(f"cannot write {path}: {exc}") from exc
+
+
+def _open_checked(path, what: str) -> h5py.File:
+    """The HDF5 file ``path`` opened for reading after its checksum was verified."""
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise CheckpointError(f"cannot read the {what} {path}: {exc}") from exc
+    try:
+        stored = f.attrs.get("checksum")
+        if stored is None:
+            raise CheckpointError(f"the {what} {path} has no checksum: not a complete shspec file")
+        if _content_checksum(f) != stored:
+            raise CheckpointError(f"the {what} {path} is damaged: its checksum does not match its content")
+    except CheckpointError:
+        f.close()
+        raise
+    except Exception as exc:  # h5py raises many kinds on damaged files; every one means the same here
+        f.close()
+        raise CheckpointError(f"the {what} {path} is damaged: {exc}") from exc
+    return f
 
 
 def save_checkpoint(path, fp: str, finished: list, progress) -> None:
@@ -85,6 +137,7 @@ def save_checkpoint(path, fp: str, finished: list, progress) -> None:
         if progress is not None:
             c = f.create_group("current")
             c.attrs["index"], c.attrs["stage"], c.attrs["seconds"] = progress.index, progress.stage, progress.seconds
+            c.attrs["status"] = progress.status
             c.create_dataset("base", data=progress.base)
             c.create_dataset("history", data=np.array(progress.history, dtype=float).reshape(-1, 3))
             if progress.state is not None:
@@ -103,10 +156,9 @@ def load_checkpoint(path, fp: str):
     CheckpointError
         If the file is unreadable, of another format, or of another problem (fingerprint mismatch).
     """
-    from .schedule import StartProgress
-
+    f = _open_checked(path, "checkpoint")
     try:
-        with h5py.File(path, "r") as f:
+        with f:
             if f.attrs.get("format") != CHECKPOINT_FORMAT:
                 raise CheckpointError(f"{path} is not a shspec fit checkpoint of format {CHECKPOINT_FORMAT}")
             if f.attrs.get("fingerprint") != fp:
@@ -121,8 +173,10 @@ def load_checkpoint(path, fp: str):
                 progress = StartProgress(index=int(c.attrs["index"]), stage=int(c.attrs["stage"]),
                                          base=c["base"][()], state=state,
                                          history=[tuple(row) for row in c["history"][()]],
-                                         seconds=float(c.attrs["seconds"]))
-    except (OSError, KeyError) as exc:
+                                         seconds=float(c.attrs["seconds"]), status=str(c.attrs["status"]))
+    except CheckpointError:
+        raise
+    except Exception as exc:
         raise CheckpointError(f"cannot read the checkpoint {path}: {exc}") from exc
     return finished, progress
 
@@ -136,21 +190,14 @@ def save_result(path, result) -> Path:
     CheckpointError
         If the file cannot be written.
     """
-    import h5py as _h5py
-    import scipy
-
-    from .. import __version__
-
     def write(f):
         f.attrs["format"] = CHECKPOINT_FORMAT
-        f.attrs["kind"] = result.kind
+        f.attrs["model"] = result.model.describe()
         f.attrs["options"] = json.dumps(options_dict(result.options))
         f.attrs["versions"] = json.dumps({"shspec": __version__, "numpy": np.__version__, "scipy": scipy.__version__,
-                                          "h5py": _h5py.__version__})
+                                          "h5py": h5py.__version__})
         f.attrs["seconds"] = result.seconds
         f.attrs["interrupted"] = result.interrupted
-        if result.lmax is not None:
-            f.attrs["lmax"], f.attrs["lmax_factor"] = result.lmax, result.lmax_factor
         t = f.create_group("target")
         t.attrs["name"], t.attrs["source"] = result.target.name, result.target.source
         t.create_dataset("eigenvalues", data=result.target.eigenvalues)
@@ -172,11 +219,19 @@ def save_result(path, result) -> Path:
 
 
 def load_result_summary(path) -> dict:
-    """The main fields of a result file: kind, options, solution (params), starts (list of StartResult)."""
+    """The main fields of a result file: model (its description), options, solution (params), target eigenvalues
+    and starts (list of StartResult, in order of their index).
+
+    Raises
+    ------
+    CheckpointError
+        If the file cannot be read or is damaged (its checksum does not match).
+    """
+    f = _open_checked(path, "result file")
     try:
-        with h5py.File(path, "r") as f:
-            return {"kind": str(f.attrs["kind"]), "options": json.loads(f.attrs["options"]),
+        with f:
+            return {"model": str(f.attrs["model"]), "options": json.loads(f.attrs["options"]),
                     "solution": f["solution"][()], "target": f["target/eigenvalues"][()],
-                    "starts": [_read_start(g) for g in f["starts"].values()]}
-    except (OSError, KeyError) as exc:
+                    "starts": sorted((_read_start(g) for g in f["starts"].values()), key=lambda r: r.index)}
+    except Exception as exc:
         raise CheckpointError(f"cannot read the result file {path}: {exc}") from exc

@@ -8,41 +8,36 @@ BLAS threads); each writes checkpoints if asked, and Ctrl-C ends the fit cleanly
 from __future__ import annotations
 
 import sys
-import time
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import InvalidArgumentError
 from ..model import SpectralModel
-from ..sphere.rotate import power_spectrum
 from .checkpoint import fingerprint, load_checkpoint, save_checkpoint
 from .options import FitOptions, FitResult, StartResult
 from .schedule import FitProblem, StartProgress, run_start
-from .targets import Target
+from ..targets import Target
 
 __all__ = ["fit", "distinct_solutions"]
 
 
-def _invariant(kind: str, params: np.ndarray) -> np.ndarray:
-    """What identifies a solution up to the spectrum's symmetries: per-degree power (harmonic), factors (mesh)."""
-    return power_spectrum(params) if kind == "harmonic" else params
-
-
-def distinct_solutions(starts: list, kind: str, tol: float) -> list:
+def distinct_solutions(starts: list, model: SpectralModel, tol: float) -> list:
     """Indices (into ``starts``) of the distinct local solutions, lowest energy first.
 
     Two starts are the same solution when their energies agree to ``tol`` relative (or both are below 1e-20) and
-    their invariants (per-degree power for harmonic fits, the factors for meshes) agree to ``tol`` relative.
+    their invariants (:meth:`~shspec.model.SpectralModel.invariant`: per-degree power for harmonic fits, the
+    factors for meshes) agree to ``tol`` relative.
     """
     if not starts:
         raise InvalidArgumentError("no starts to compare")
     order = sorted(range(len(starts)), key=lambda i: starts[i].energy)
     reps: list[int] = []
     for i in order:
-        ei, pi = starts[i].energy, _invariant(kind, starts[i].params)
+        ei, pi = starts[i].energy, model.invariant(starts[i].params)
         same = False
         for j in reps:
-            ej, pj = starts[j].energy, _invariant(kind, starts[j].params)
+            ej, pj = starts[j].energy, model.invariant(starts[j].params)
             close_e = max(ei, ej) < 1e-20 or abs(ei - ej) <= tol * max(ei, ej)
             if close_e and np.linalg.norm(pi - pj) <= tol * np.linalg.norm(pj):
                 same = True
@@ -50,14 +45,6 @@ def distinct_solutions(starts: list, kind: str, tol: float) -> list:
         if not same:
             reps.append(i)
     return reps
-
-
-def _describe(model) -> str:
-    from ..galerkin.solver import HarmonicModel
-
-    if isinstance(model, HarmonicModel):
-        return f"harmonic {model.lmax} {model.lmax_factor}"
-    return f"mesh {model.nparams} " + str(np.round(model.vertex_areas.sum(), 12))
 
 
 def fit(target: Target, model: SpectralModel, options: FitOptions | None = None, *, resume: bool = False,
@@ -68,9 +55,8 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     ----------
     target : Target
         The target spectrum (k eigenvalues; stages may use fewer).
-    model : HarmonicModel or MeshModel
-        Harmonic: the parameters are the coefficients of ρ up to the model's La, in the gauge a_1m = 0, a_00 from
-        the area (see :class:`FitOptions`).  Mesh: per-vertex factors of the model's mesh.
+    model : SpectralModel
+        The discretization: its parameters, gauge, levels and regularizer (see :mod:`shspec.model`).
     options : FitOptions, optional
     resume : bool
         Continue from ``options.checkpoint_path`` if that file exists (it must be a checkpoint of the same fit).
@@ -91,22 +77,18 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
 
     Examples
     --------
-    >>> from shspec import HarmonicModel
+    >>> from shspec.galerkin import HarmonicModel
     >>> from shspec.inverse import FitOptions, blob_factor, fit, harmonic_target
     >>> target = harmonic_target(blob_factor(), lmax=12, numeig=40)
     >>> result = fit(target, HarmonicModel(12, 6), FitOptions(starts=1))  # doctest: +SKIP
     """
     options = FitOptions() if options is None else options
     problem = FitProblem(model, target, options)
-    fp = fingerprint(options, target.eigenvalues, _describe(model))
+    fp = fingerprint(options, target.eigenvalues, model.describe())
     finished: list[StartResult] = []
     current: StartProgress | None = None
-    if resume and options.checkpoint_path is not None:
-        from pathlib import Path
-
-        if Path(options.checkpoint_path).exists():
-            finished, current = load_checkpoint(options.checkpoint_path, fp)
-    t0 = time.perf_counter()
+    if resume and options.checkpoint_path is not None and Path(options.checkpoint_path).exists():
+        finished, current = load_checkpoint(options.checkpoint_path, fp)
 
     def checkpoint(progress):
         save_checkpoint(options.checkpoint_path, fp, finished, progress)
@@ -135,8 +117,6 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     if not finished:
         raise KeyboardInterrupt
     finished.sort(key=lambda r: r.index)
-    solutions = distinct_solutions(finished, problem.kind, options.distinct_tol)
-    lmax = getattr(model, "lmax", None) if problem.kind == "harmonic" else None
-    la = getattr(model, "lmax_factor", None) if problem.kind == "harmonic" else None
-    return FitResult(starts=finished, solutions=solutions, target=target, options=options, kind=problem.kind,
-                     lmax=lmax, lmax_factor=la, seconds=time.perf_counter() - t0, interrupted=interrupted)
+    solutions = distinct_solutions(finished, model, options.distinct_tol)
+    return FitResult(starts=finished, solutions=solutions, target=target, options=options, model=model,
+                     seconds=float(sum(r.seconds for r in finished)), interrupted=interrupted)

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..checks import check_float, check_int
 from ..errors import InvalidArgumentError
 
 __all__ = ["OPTIMIZERS", "WEIGHTINGS", "AREA_MODES", "Stage", "FitOptions", "StartResult", "FitResult",
@@ -23,24 +24,6 @@ WEIGHTINGS = ("relative", "absolute")
 #: How a_00 (the area) is treated in a harmonic fit: "auto" fixes it to the target's true area when known and
 #: fits it (started from the Weyl estimate) otherwise; "fixed" requires a known or estimated area; "fit" frees it.
 AREA_MODES = ("auto", "fixed", "fit")
-
-
-def _positive_int(value, name: str, *, allow_none: bool = False, minimum: int = 1):
-    if value is None and allow_none:
-        return None
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise InvalidArgumentError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
-def _positive_float(value, name: str, *, zero_ok: bool = False) -> float:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise InvalidArgumentError(f"{name} must be a number, got {value!r}") from None
-    if not np.isfinite(value) or value < 0 or (value == 0 and not zero_ok):
-        raise InvalidArgumentError(f"{name} must be finite and {'>=' if zero_ok else '>'} 0, got {value}")
-    return value
 
 
 @dataclass(frozen=True)
@@ -64,9 +47,9 @@ class Stage:
     max_iter: int | None = None
 
     def __post_init__(self):
-        _positive_int(self.lmax_factor, "Stage.lmax_factor", allow_none=True, minimum=0)
-        _positive_int(self.numeig, "Stage.numeig", allow_none=True, minimum=2)
-        _positive_int(self.max_iter, "Stage.max_iter", allow_none=True)
+        check_int(self.lmax_factor, "Stage.lmax_factor", allow_none=True, minimum=0)
+        check_int(self.numeig, "Stage.numeig", allow_none=True, minimum=2)
+        check_int(self.max_iter, "Stage.max_iter", allow_none=True, minimum=1)
 
 
 def parse_schedule(text: str) -> tuple[Stage, ...]:
@@ -108,10 +91,12 @@ class FitOptions:
         Bi-Laplacian regularization weight R ≥ 0 (E += R‖Δρ‖²).
     area : {"auto", "fixed", "fit"}
         Treatment of a_00, see :data:`AREA_MODES` (harmonic fits).
-    schedule : tuple of Stage
-        Stages run in order from each start; empty means one stage at full degree with every eigenvalue.
-        :func:`~shspec.inverse.numeig_ramp` (the CLI's default) succeeded on 2 of 8 starts of the blob where one
-        stage succeeded on none (benchmarks/results/bench_inverse.json).
+    schedule : tuple of Stage or None
+        Stages run in order from each start; empty means one stage at full degree with every eigenvalue; None (the
+        default, also the command line's) the model's default, :func:`~shspec.inverse.default_schedule`: the degree
+        ramp for harmonic models (with 4 basin hops 7 of 8 blob starts succeeded, against 2 of 8 with
+        :func:`~shspec.inverse.numeig_ramp` and none with one stage; benchmarks/results/bench_inverse.json), the
+        numeig ramp for meshes.
     starts : int
         Number of random symmetry-broken starts.
     seed : int
@@ -158,7 +143,7 @@ class FitOptions:
     weights: str = "relative"
     reg: float = 0.0
     area: str = "auto"
-    schedule: tuple = ()
+    schedule: tuple | None = None
     starts: int = 4
     seed: int = 0
     start_amplitude: float = 0.2
@@ -168,7 +153,7 @@ class FitOptions:
     energy_tol: float = 1e-6
     lbfgs_memory: int = 20
     lm_damping: float = 1e-3
-    basin_hops: int = 0
+    basin_hops: int = 4
     hop_iter: int = 15
     distinct_tol: float = 1e-4
     success_tol: float = 1e-10
@@ -183,23 +168,24 @@ class FitOptions:
             raise InvalidArgumentError(f"weights must be one of {WEIGHTINGS}, got {self.weights!r}")
         if self.area not in AREA_MODES:
             raise InvalidArgumentError(f"area must be one of {AREA_MODES}, got {self.area!r}")
-        if not isinstance(self.schedule, tuple) or not all(isinstance(s, Stage) for s in self.schedule):
-            raise InvalidArgumentError("schedule must be a tuple of Stage")
-        degrees = [s.lmax_factor for s in self.schedule if s.lmax_factor is not None]
+        if self.schedule is not None and (not isinstance(self.schedule, tuple)
+                                          or not all(isinstance(s, Stage) for s in self.schedule)):
+            raise InvalidArgumentError("schedule must be None (the model's default) or a tuple of Stage")
+        degrees = [s.lmax_factor for s in self.schedule or () if s.lmax_factor is not None]
         if any(b < a for a, b in zip(degrees, degrees[1:])):
             raise InvalidArgumentError(f"the stages' degrees must not decrease, got {degrees}")
-        _positive_float(self.reg, "reg", zero_ok=True)
-        _positive_int(self.starts, "starts")
-        _positive_int(self.seed, "seed", minimum=0)
-        _positive_float(self.start_amplitude, "start_amplitude")
-        _positive_int(self.max_iter, "max_iter")
+        check_float(self.reg, "reg", minimum=0.0)
+        check_int(self.starts, "starts", minimum=1)
+        check_int(self.seed, "seed", minimum=0)
+        check_float(self.start_amplitude, "start_amplitude", positive=True)
+        check_int(self.max_iter, "max_iter", minimum=1)
         for name in ("residual_tol", "step_tol", "energy_tol", "distinct_tol", "success_tol"):
-            _positive_float(getattr(self, name), name)
-        _positive_int(self.lbfgs_memory, "lbfgs_memory")
-        _positive_float(self.lm_damping, "lm_damping")
-        _positive_int(self.basin_hops, "basin_hops", minimum=0)
-        _positive_int(self.hop_iter, "hop_iter")
-        _positive_int(self.checkpoint_every, "checkpoint_every", minimum=0)
+            check_float(getattr(self, name), name, positive=True)
+        check_int(self.lbfgs_memory, "lbfgs_memory", minimum=1)
+        check_float(self.lm_damping, "lm_damping", positive=True)
+        check_int(self.basin_hops, "basin_hops", minimum=0)
+        check_int(self.hop_iter, "hop_iter", minimum=1)
+        check_int(self.checkpoint_every, "checkpoint_every", minimum=0)
         if self.checkpoint_every and not self.checkpoint_path:
             raise InvalidArgumentError("checkpoint_every > 0 needs a checkpoint_path")
 
@@ -251,18 +237,16 @@ class FitResult:
     Attributes
     ----------
     starts : list of StartResult
-        Every start, in order.
+        Every start, in order of their index.
     solutions : list of int
         Indices into ``starts`` of the distinct local solutions, best (lowest energy) first.
     target : Target
         What was fitted.
     options : FitOptions
-    kind : {"harmonic", "mesh"}
-        Discretization of ``params``.
-    lmax, lmax_factor : int or None
-        Basis and factor band limits (harmonic fits).
+    model : SpectralModel
+        The discretization whose parameters ``params`` are.
     seconds : float
-        Wall time of the whole fit.
+        Time spent in the starts, summed over them and over every process of a resumed fit.
     interrupted : bool
         The fit was stopped by Ctrl-C; ``starts`` holds what was done, the best state included.
     """
@@ -271,9 +255,7 @@ class FitResult:
     solutions: list
     target: object
     options: FitOptions
-    kind: str
-    lmax: int | None
-    lmax_factor: int | None
+    model: object
     seconds: float
     interrupted: bool = False
 
@@ -288,9 +270,20 @@ class FitResult:
         return sum(s.success for s in self.starts)
 
     def factor(self):
-        """The best ρ as a :class:`~shspec.sphere.factor.ConformalFactor` (harmonic fits)."""
-        from ..sphere.factor import ConformalFactor
+        """The best solution as a harmonic :class:`~shspec.sphere.factor.ConformalFactor` (a mesh fit's factors
+        expanded in harmonics, :meth:`~shspec.model.SpectralModel.to_factor`)."""
+        return self.model.to_factor(self.best.params)
 
-        if self.kind != "harmonic":
-            raise InvalidArgumentError("factor() is for harmonic fits; a mesh fit's params are per-vertex factors")
-        return ConformalFactor(self.best.params, name="fit")
+    def to_summary(self) -> dict:
+        """A JSON-ready summary: model, target, options, energies and residuals of every start, the best solution
+        as cilm, and its errors against the truth when the target knows it (:func:`~shspec.inverse.output.summary`)."""
+        from .output import summary  # output imports this module
+
+        return summary(self)
+
+    def write(self, directory, *, figures: bool = True):
+        """Write result.h5, summary.json and (if ``figures``) the PNG figures into ``directory`` (created); returns
+        its path (:func:`~shspec.inverse.output.write_result`)."""
+        from .output import write_result  # output imports this module
+
+        return write_result(self, directory, figures=figures)

@@ -9,16 +9,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import check_int
 from ..errors import InvalidArgumentError, MeshError
 from ..sphere.evaluate import harmonic_matrix
 from ..sphere.harmonics import check_degree
 from .cotan import vertex_areas
 from .triangle_mesh import TriangleMesh
 
-__all__ = ["fit_harmonic", "HarmonicFit", "FIT_METHODS"]
+__all__ = ["fit_harmonic", "mesh_band_limit", "HarmonicFit", "FIT_METHODS"]
 
 #: Ways to expand vertex values: area-weighted least squares, or the lumped-area quadrature a_k = Σ A_i f_i Y_k(x_i).
 FIT_METHODS = ("lsq", "quadrature")
+
+
+def mesh_band_limit(nvertices: int, lmax_factor: int | None = None) -> int:
+    """The largest degree L whose (L+1)² coefficients a least-squares fit on ``nvertices`` vertices determines well
+    (at least two vertices per coefficient, the rule of :func:`fit_harmonic`), capped at ``lmax_factor``."""
+    nvertices = check_int(nvertices, "the number of vertices", minimum=8)
+    la = int(np.sqrt(nvertices / 2)) - 1
+    return la if lmax_factor is None else min(check_degree(lmax_factor, "lmax_factor"), la)
 
 
 @dataclass(frozen=True)

@@ -3,6 +3,10 @@
 Parameters are per-vertex conformal factors c (n,), dimensionless: the metric is scaled by c_j near vertex j, so
 that the mass is M(c) = diag(c)·M_lumped while the cotan stiffness L, conformally invariant, stays fixed (NOTES.md).
 With M-orthonormal eigenvectors, ∂λ_i/∂c_j = −λ_i v_i[j]² m_j, m = diag(M_lumped) the vertex areas.
+
+For a fit the optimizer's variables are c itself (``transform="identity"``) or s = log c (``transform="exp"``):
+factors that span decades (the bunny's cMCF factors: 1e-3 … 3e4) stay positive for free in log form, and the
+regularizer then smooths s.
 """
 
 from __future__ import annotations
@@ -11,7 +15,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InvalidArgumentError, NotPositiveError
-from ..model import SpectralModel, Spectrum
+from ..model import TRANSFORMS, SpectralModel, Spectrum, regularization_weight
+from ..sphere.evaluate import sample_harmonic
+from ..sphere.factor import ConformalFactor
+from ..sphere.random import random_coefficients
+from .bridge import fit_harmonic, mesh_band_limit
 from .cotan import cotan_stiffness, vertex_areas
 from .eigen import EigenOptions, eigenpairs
 from .triangle_mesh import TriangleMesh
@@ -28,6 +36,11 @@ class MeshModel(SpectralModel):
         The reference mesh, n vertices (typically the cMCF sphere of a surface, :attr:`CMCFResult.sphere`).
     options : EigenOptions, optional
         Passed to :func:`~shspec.mesh.eigen.eigenpairs`.
+    transform : {"identity", "exp"}
+        The variables of a fit: the factors c, or their logarithms s (c = exp(s)).
+    lmax_factor : int, optional
+        Degree of the harmonic expansion of fitted factors (:meth:`to_factor`); default and cap: the largest the
+        mesh determines (:func:`~shspec.mesh.bridge.mesh_band_limit`).
 
     Attributes
     ----------
@@ -39,11 +52,16 @@ class MeshModel(SpectralModel):
         Lumped areas m_j of the reference mesh (length unit squared).
     """
 
-    def __init__(self, mesh: TriangleMesh, options: EigenOptions | None = None):
+    def __init__(self, mesh: TriangleMesh, options: EigenOptions | None = None, *, transform: str = "identity",
+                 lmax_factor: int | None = None):
         if not isinstance(mesh, TriangleMesh):
             raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
         if options is not None and not isinstance(options, EigenOptions):
             raise InvalidArgumentError(f"options must be EigenOptions, got {type(options).__name__}")
+        if transform not in TRANSFORMS:
+            raise InvalidArgumentError(f"transform must be one of {TRANSFORMS}, got {transform!r}")
+        self.transform = transform
+        self.lmax_factor = mesh_band_limit(mesh.nvertices, lmax_factor)
         self.mesh = mesh
         self.options = options
         self.stiffness = cotan_stiffness(mesh).tocsr()
@@ -148,3 +166,66 @@ class MeshModel(SpectralModel):
             # Built on first use: Δ = M₀⁻¹L with the reference lumped mass, and Lᵀ M₀⁻¹ L is symmetric.
             self._bilaplacian = (self.stiffness.T @ sp.diags(1.0 / self.vertex_areas) @ self.stiffness).tocsr()
         return self._bilaplacian
+
+    # -- what the inverse solver asks of a model (shspec.model.SpectralModel) -------------------------------------
+
+    def describe(self) -> str:
+        return (f"mesh n={self.nparams} area={np.round(self.vertex_areas.sum(), 12)}"
+                + ("" if self.transform == "identity" else f" {self.transform}"))
+
+    def free_parameters(self, fit_area: bool) -> np.ndarray:
+        """Every vertex factor (their sum sets the area, so ``fit_area`` has no separate parameter)."""
+        return np.arange(self.nparams)
+
+    def random_start(self, rng: np.random.Generator, amplitude: float, area: float, level: int | None = None,
+                     ) -> np.ndarray:
+        """Constant factors of the given total area times 1 + a smooth random field of degrees 2 … 4 (RMS ∝
+        amplitude/l), halved until it stays above −0.75."""
+        self.restrict(level)
+        c0 = area / self.vertex_areas.sum()
+        field = sample_harmonic(random_coefficients(rng, 4, amplitude), self.mesh.vertices)
+        while np.min(field) < -0.75:
+            field = field * 0.5
+        return c0 * (1.0 + field)
+
+    def regularizer(self, reg: float):
+        """D = √(2R) M₀^{-1/2} L on the variables u (c or s): ½‖Du‖² = R (Lu)ᵀ M₀⁻¹ (Lu), the bi-Laplacian penalty of
+        :meth:`bilaplacian_penalty` with the reference vertex areas M₀."""
+        reg = regularization_weight(reg)
+        if reg == 0:
+            return None
+        return (sp.diags(np.sqrt(2 * reg / self.vertex_areas)) @ self.stiffness).tocsr()
+
+    def to_factor(self, params: np.ndarray) -> ConformalFactor:
+        """The factors expanded in harmonics of degree :attr:`lmax_factor` on the reference mesh (which must lie on
+        the unit sphere, as a cMCF sphere does)."""
+        c = self._factors(params)
+        return ConformalFactor(fit_harmonic(self.mesh, c, self.lmax_factor).coefficients, name="fit (harmonic)")
+
+    def compare(self, params: np.ndarray, target) -> dict:
+        """With the target's per-vertex truth (``target.factors``, e.g. its cMCF factors on this mesh): the
+        area-weighted relative L2 error of the factors, the RMS and the Pearson correlation of their logarithms over
+        the vertices, and both ranges.  No Möbius or O(3) alignment: the factors live on the same mesh."""
+        truth = getattr(target, "factors", None)
+        if truth is None or np.shape(truth) != (self.nparams,):
+            return {}
+        c, truth = self._factors(params), np.asarray(truth, dtype=float)
+        w = self.vertex_areas
+        lc, lt = np.log(c), np.log(truth)
+        return {"factor_error": float(np.sqrt(w @ (c - truth) ** 2 / (w @ truth ** 2))),
+                "log_rms": float(np.sqrt(w @ (lc - lt) ** 2 / w.sum())),
+                "log_correlation": float(np.corrcoef(lc, lt)[0, 1]),
+                "fitted_range": [float(c.min()), float(c.max())], "truth_range": [float(truth.min()), float(truth.max())]}
+
+    def figures(self, params: np.ndarray, target) -> dict:
+        """Hammer maps of the fitted factors (with the truth and their ratio when the target has per-vertex
+        factors), and the study's validation of spectra when the target has its mesh."""
+        from .figures import plot_spectra_validation, plot_vertex_factors
+
+        truth = getattr(target, "factors", None)
+        truth = truth if truth is not None and np.shape(truth) == (self.nparams,) else None
+        out = {"vertex_factors.png": plot_vertex_factors(self.mesh, self._factors(params), truth)}
+        if truth is not None and getattr(target, "mesh", None) is not None:
+            k = min(np.size(target.eigenvalues), self.nparams - 1)
+            out["validation.png"] = plot_spectra_validation(self, params, target.mesh, truth, k)[0]
+        return out

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
+from ..checks import check_int
 from ..errors import InvalidArgumentError
 from ..sphere.harmonics import flat_index
 from ..sphere.evaluate import harmonic_matrix
@@ -33,11 +34,7 @@ BLOB_COEFFICIENTS = {
 
 
 def _subdivisions(value) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise InvalidArgumentError(f"subdivisions must be an integer, got {value!r}")
-    if not 0 <= value <= MAX_SUBDIVISIONS:
-        raise InvalidArgumentError(f"subdivisions must be in 0..{MAX_SUBDIVISIONS}, got {value}")
-    return int(value)
+    return check_int(value, "subdivisions", minimum=0, maximum=MAX_SUBDIVISIONS)
 
 
 def icosphere(subdivisions: int = 3) -> TriangleMesh:
@@ -78,8 +75,7 @@ def star_surface(l: int, m: int, p: float, subdivisions: int = 4) -> TriangleMes
     TriangleMesh
         Vertex i at (1 + p |Y_l^m(u_i)|) u_i, u_i the icosphere's vertex i.
     """
-    if isinstance(l, bool) or not isinstance(l, (int, np.integer)) or not isinstance(m, (int, np.integer)):
-        raise InvalidArgumentError(f"l and m must be integers, got {l!r}, {m!r}")
+    l, m = check_int(l, "l"), check_int(m, "m", minimum=None)
     if l < 0 or abs(m) > l:
         raise InvalidArgumentError(f"need l >= 0 and |m| <= l, got l = {l}, m = {m}")
     p = float(p)

@@ -179,8 +179,12 @@ class ConformalFactor:
                 f"(mean value {self.area / (4 * np.pi):.6g}), so the mass matrix is not positive definite")
         return low
 
-    def plot(self, ax=None, *, grid_lmax: int | None = None, cmap: str = "viridis", title: str | None = None):
-        """Hammer projection of ρ (longitude −180…180°, latitude −90…90°); returns the matplotlib Axes."""
+    def plot(self, ax=None, *, grid_lmax: int | None = None, cmap: str = "viridis", title: str | None = None,
+             vmin: float | None = None, vmax: float | None = None):
+        """Hammer projection of ρ (longitude −180…180°, latitude −90…90°); returns the matplotlib Axes.
+
+        ``vmin``, ``vmax`` fix the colour range (so that several maps can share one); default: ρ's own range.
+        """
         import matplotlib.pyplot as plt
 
         values, grid = self.evaluate(grid_lmax)
@@ -190,7 +194,7 @@ class ConformalFactor:
         if ax is None:
             fig = plt.figure(figsize=(8, 4.5))
             ax = fig.add_subplot(111, projection="hammer")
-        mesh = ax.pcolormesh(lon[order], lat, values[:, order], shading="nearest", cmap=cmap)
+        mesh = ax.pcolormesh(lon[order], lat, values[:, order], shading="nearest", cmap=cmap, vmin=vmin, vmax=vmax)
         ax.figure.colorbar(mesh, ax=ax, orientation="horizontal", pad=0.05, shrink=0.6, label="rho")
         ax.grid(True, alpha=0.3)
         ax.set_title(title if title is not None else self.name)

@@ -13,16 +13,25 @@ its area is used instead.
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InvalidArgumentError
-from ..sphere.factor import ConformalFactor
-from ..sphere.harmonics import check_degree, degrees, flat_index, ncoeffs
+from .checks import check_int
+from .errors import InvalidArgumentError
+from .galerkin.solver import HarmonicModel
+from .mesh.bridge import fit_harmonic, mesh_band_limit
+from .mesh.cmcf import cmcf
+from .mesh.eigen import mesh_spectrum
+from .mesh.io import load_mesh
+from .mesh.shapes import star_surface
+from .mesh.triangle_mesh import TriangleMesh
+from .sphere.factor import ConformalFactor
+from .sphere.harmonics import flat_index, ncoeffs
 
-__all__ = ["BLOB_HARMONIC", "blob_factor", "random_centred_coefficients", "Target", "harmonic_target", "mesh_target", "spectrum_target",
+__all__ = ["BLOB_HARMONIC", "blob_factor", "Target", "harmonic_target", "mesh_target", "spectrum_target",
            "read_spectrum", "estimate_area", "parse_target", "TARGET_SOURCES"]
 
 #: The built-in harmonic blob: ρ = Σ a_lm Y_lm with these coefficients, (l, m) -> a_lm, mean value 1 (area 4π).
@@ -50,9 +59,8 @@ TARGET_SOURCES = ("pl", "harmonic")
 
 def blob_factor(lmax: int = 6) -> ConformalFactor:
     """The built-in blob ρ (:data:`BLOB_HARMONIC`), zero-padded to degree ``lmax`` ≥ 6."""
-    if isinstance(lmax, bool) or not isinstance(lmax, (int, np.integer)) or lmax < 6:
-        raise InvalidArgumentError(f"the blob has degree 6; lmax must be an integer >= 6, got {lmax!r}")
-    a = np.zeros(ncoeffs(int(lmax)))
+    lmax = check_int(lmax, "lmax (the blob has degree 6)", minimum=6)
+    a = np.zeros(ncoeffs(lmax))
     for (l, m), value in BLOB_HARMONIC.items():
         a[int(flat_index(l, m))] = value
     return ConformalFactor(a, name="blob")
@@ -107,20 +115,6 @@ class Target:
         return self.area if self.area is not None else estimate_area(self.eigenvalues)
 
 
-def random_centred_coefficients(seed: int, lmax_factor: int, amplitude: float) -> np.ndarray:
-    """Coefficients (ncoeffs(La),) of a random band-limited ρ with mean 1 and a_1m = 0 (the Möbius-centred gauge).
-
-    Degrees l >= 2 have per-coefficient standard deviation amplitude·√(4π)/(√(2l+1)·l), so the RMS of each degree
-    falls like amplitude/l; reproducible from ``seed``.  Positivity is not checked: keep ``amplitude`` modest.
-    """
-    l = degrees(check_degree(lmax_factor, "lmax_factor"))
-    rng = np.random.default_rng([99, int(seed)])
-    a = np.zeros(l.size)
-    a[0] = np.sqrt(4 * np.pi)
-    a[l >= 2] = (amplitude * a[0] / np.sqrt(2 * l + 1) / np.maximum(l, 1) * rng.standard_normal(l.size))[l >= 2]
-    return a
-
-
 def estimate_area(eigenvalues) -> float:
     """Area from a spectrum (k,) by least squares on Weyl's law N(λ_n) ≈ Aλ_n/(4π) + c (module notes)."""
     lam = np.asarray(eigenvalues, dtype=float)
@@ -136,8 +130,6 @@ def estimate_area(eigenvalues) -> float:
 
 def harmonic_target(rho, lmax: int, numeig: int, *, name: str | None = None) -> Target:
     """The first ``numeig`` Galerkin eigenvalues of a harmonic ρ at basis band limit ``lmax``."""
-    from ..galerkin.solver import HarmonicModel
-
     factor = rho if isinstance(rho, ConformalFactor) else ConformalFactor(rho)
     model = HarmonicModel(lmax, factor.lmax)
     lam = model.spectrum(factor, numeig).eigenvalues
@@ -161,18 +153,12 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
     source : {"pl", "harmonic"}
         See :data:`TARGET_SOURCES`.
     """
-    from ..galerkin.solver import HarmonicModel
-    from ..mesh.bridge import fit_harmonic
-    from ..mesh.cmcf import cmcf
-    from ..mesh.eigen import mesh_spectrum
-    from ..mesh.triangle_mesh import TriangleMesh
-
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
     if source not in TARGET_SOURCES:
         raise InvalidArgumentError(f"source must be one of {TARGET_SOURCES}, got {source!r}")
     flow = cmcf(mesh)
-    la = min(int(lmax_factor), int(np.sqrt(mesh.nvertices / 2)) - 1)
+    la = mesh_band_limit(mesh.nvertices, lmax_factor)
     truth = ConformalFactor(fit_harmonic(flow.sphere, flow.factors, la).coefficients, name=f"{name} (cMCF)")
     if source == "pl":
         lam = mesh_spectrum(mesh, numeig, whole_multiplets=False).eigenvalues
@@ -184,13 +170,15 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
 
 
 def read_spectrum(path) -> np.ndarray:
-    """Eigenvalues from a file: plain text (one per line, '#' comments), .npy, or .json (a list or
-    {"eigenvalues": [...]}) ; λ₀ = 0 is prepended when missing.
+    """Eigenvalues from a file: plain text (one per line, or rows whose *last* column is the eigenvalue, as
+    ``shspec mesh-spectrum`` prints them; '#' comments), .npy, or .json (a list or {"eigenvalues": [...]});
+    λ₀ = 0 is prepended when missing.
 
     Raises
     ------
     InvalidArgumentError
-        If the file cannot be read or does not hold an ascending positive spectrum.
+        If the file cannot be read, is empty, holds a value that is not finite (named by its index), or is not
+        ascending (the first descent named).
     """
     path = Path(path)
     try:
@@ -200,21 +188,37 @@ def read_spectrum(path) -> np.ndarray:
             data = json.loads(path.read_text())
             lam = data["eigenvalues"] if isinstance(data, dict) else data
         else:
-            lam = np.loadtxt(path, ndmin=1)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)  # numpy warns on an empty file; we say it ourselves
+                lam = np.loadtxt(path, ndmin=2)
+            if lam.size and lam.shape[1] > 1:
+                lam = lam[:, -1]
         lam = np.asarray(lam, dtype=float).ravel()
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise InvalidArgumentError(f"cannot read a spectrum from {path}: {exc}") from None
-    if lam.size == 0 or not np.all(np.isfinite(lam)):
-        raise InvalidArgumentError(f"{path} holds no finite eigenvalues")
+    if lam.size == 0:
+        raise InvalidArgumentError(f"{path} holds no eigenvalues")
+    bad = np.flatnonzero(~np.isfinite(lam))
+    if bad.size:
+        raise InvalidArgumentError(f"{path}: eigenvalue {bad[0]} is {lam[bad[0]]} (every value must be finite)")
+    drop = np.flatnonzero(np.diff(lam) < -1e-12 * np.max(np.abs(lam)))
+    if drop.size:
+        i = int(drop[0])
+        raise InvalidArgumentError(f"{path} is not ascending: eigenvalue {i + 1} ({lam[i + 1]:.6g}) is below "
+                                   f"eigenvalue {i} ({lam[i]:.6g})")
     if lam[0] > 1e-8 * lam[-1]:
         lam = np.concatenate([[0.0], lam])
     lam[0] = 0.0
     return lam
 
 
-def spectrum_target(path) -> Target:
-    """A target read from a spectrum file (:func:`read_spectrum`); area and truth unknown."""
-    return Target(Path(path).stem, read_spectrum(path), source="file")
+def spectrum_target(path, numeig: int | None = None) -> Target:
+    """A target read from a spectrum file (:func:`read_spectrum`), its first ``numeig`` eigenvalues (λ₀ = 0
+    included; default and cap: all of them); area and truth unknown."""
+    lam = read_spectrum(path)
+    if numeig is not None:
+        lam = lam[:check_int(numeig, "numeig", minimum=2)]
+    return Target(Path(path).stem, lam, source="file")
 
 
 def parse_target(text: str, *, lmax: int, numeig: int, lmax_factor: int, source: str = "pl",
@@ -233,15 +237,12 @@ def parse_target(text: str, *, lmax: int, numeig: int, lmax_factor: int, source:
     subdivisions : int
         Icosphere subdivisions of star surfaces.
     """
-    from ..mesh.io import load_mesh
-    from ..mesh.shapes import star_surface
-
     if not isinstance(text, str):
         raise InvalidArgumentError(f"a target is a string, got {text!r}")
-    kind, _, arg = text.partition(":")
-    if kind == "blob" and not arg:
+    scheme, _, arg = text.partition(":")
+    if scheme == "blob" and not arg:
         return harmonic_target(blob_factor(max(6, lmax_factor)).truncated(6), lmax, numeig, name="blob")
-    if kind == "star":
+    if scheme == "star":
         try:
             l, m, p = arg.split(",")
             l, m, p = int(l), int(m), float(p)
@@ -249,8 +250,8 @@ def parse_target(text: str, *, lmax: int, numeig: int, lmax_factor: int, source:
             raise InvalidArgumentError(f"a star target is 'star:l,m,p', got {text!r}") from None
         return mesh_target(star_surface(l, m, p, subdivisions), lmax, numeig, lmax_factor, source=source,
                            name=f"star({l},{m},{p:g})")
-    if kind == "mesh" and arg:
+    if scheme == "mesh" and arg:
         return mesh_target(load_mesh(arg), lmax, numeig, lmax_factor, source=source, name=Path(arg).stem)
-    if kind == "spectrum" and arg:
-        return spectrum_target(arg)
+    if scheme == "spectrum" and arg:
+        return spectrum_target(arg, numeig)
     raise InvalidArgumentError(f"unknown target {text!r}: use blob, star:l,m,p, mesh:PATH or spectrum:FILE")

@@ -1,0 +1,51 @@
+"""Argument checks shared by every public function: one wording for one kind of mistake."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InvalidArgumentError
+
+__all__ = ["check_int", "check_float"]
+
+
+def check_int(value, name: str, *, minimum: int | None = 0, maximum: int | None = None,
+              allow_none: bool = False) -> int | None:
+    """``value`` as an int after checking that it is an integer (not a bool) in [minimum, maximum].
+
+    Raises
+    ------
+    InvalidArgumentError
+        Naming ``name``, the bound and the value.
+    """
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InvalidArgumentError(f"{name} must be an integer, got {value!r}")
+    value = int(value)
+    if minimum is not None and value < minimum:
+        raise InvalidArgumentError(f"{name} must be an integer >= {minimum}, got {value}")
+    if maximum is not None and value > maximum:
+        raise InvalidArgumentError(f"{name} must be an integer <= {maximum}, got {value}")
+    return value
+
+
+def check_float(value, name: str, *, minimum: float | None = None, positive: bool = False) -> float:
+    """``value`` as a finite float, checked to be ≥ ``minimum`` (and > 0 if ``positive``).
+
+    Raises
+    ------
+    InvalidArgumentError
+        Naming ``name`` and the value.
+    """
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise InvalidArgumentError(f"{name} must be a number, got {value!r}") from None
+    if not np.isfinite(value):
+        raise InvalidArgumentError(f"{name} must be finite, got {value}")
+    if positive and not value > 0:
+        raise InvalidArgumentError(f"{name} must be > 0, got {value}")
+    if minimum is not None and value < minimum:
+        raise InvalidArgumentError(f"{name} must be >= {minimum:g}, got {value}")
+    return value

@@ -1,0 +1,91 @@
+"""What a finished fit writes: a JSON-ready summary, result.h5 and the figures, in one directory.
+
+The summary holds everything needed to judge the fit without opening the HDF5 file: the model, the target, the
+options, every start (energy, residual, iterations, time, why it stopped, whether it succeeded), the best solution
+as a pyshtools cilm array and, when the target knows its truth, the errors after Möbius + O(3) alignment (and the
+model's own comparison, e.g. per-vertex factor errors on a mesh).  A start *succeeds* when its largest relative
+eigenvalue residual max_i |λ_i − λ*_i|/λ*_i (i ≥ 1) is at most ``FitOptions.success_tol``; the summary says so.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ..errors import NotPositiveError
+from ..io import ensure_directory
+from . import plots
+from .align import align
+from .checkpoint import options_dict, save_result
+from .options import FitResult
+
+__all__ = ["summary", "write_result"]
+
+
+def _alignment(result: FitResult) -> dict | None:
+    """Errors of the best solution against the target's harmonic truth after alignment, or why there are none."""
+    truth = result.target.truth
+    if truth is None:
+        return None
+    try:
+        aligned = align(result.factor(), truth)
+    except NotPositiveError as exc:
+        # a low-degree expansion of extreme per-vertex factors can dip below 0: report it, keep the rest
+        return {"skipped": f"no alignment: {exc}"}
+    return {"relative_error": aligned.relative_error, "power_error": aligned.power_error,
+            "mirrored": aligned.mirrored, "angles": aligned.angles.tolist()}
+
+
+def summary(result: FitResult) -> dict:
+    """The JSON-ready summary of a fit (module notes)."""
+    if not isinstance(result, FitResult):
+        raise TypeError(f"expected a FitResult, got {type(result).__name__}")
+    best, target, opt = result.best, result.target, result.options
+    out = {
+        "target": target.name, "source": target.source, "model": result.model.describe(),
+        "numeig": target.numeig, "options": options_dict(opt),
+        "energy": best.energy, "relative_residual": best.relative_residual,
+        "success_definition": f"a start succeeds when max_i |lambda_i - lambda*_i| / lambda*_i <= {opt.success_tol:g}",
+        "successes": result.success_count, "time_s": result.seconds, "interrupted": result.interrupted,
+        "solutions": [{"start": result.starts[i].index, "energy": result.starts[i].energy} for i in result.solutions],
+        "starts": [{"index": r.index, "energy": r.energy, "relative_residual": r.relative_residual,
+                    "iterations": r.iterations, "time_s": r.seconds, "status": r.status, "success": r.success}
+                   for r in result.starts],
+    }
+    try:
+        out["cilm"] = result.factor().to_cilm().tolist()
+    except NotPositiveError as exc:  # pragma: no cover - to_factor does not check positivity today
+        out["cilm"] = None
+        out["cilm_skipped"] = str(exc)
+    alignment = _alignment(result)
+    if alignment is not None:
+        out["alignment"] = alignment
+    out.update(result.model.compare(best.params, target))
+    return out
+
+
+def write_result(result: FitResult, directory, *, figures: bool = True) -> Path:
+    """Write ``result.h5`` (:func:`~shspec.inverse.checkpoint.save_result`), ``summary.json`` and, if ``figures``,
+    history.png, residuals.png, factors.png and the model's own figures into ``directory`` (created).
+
+    Returns
+    -------
+    Path
+        The directory.
+    """
+    out = ensure_directory(directory)
+    save_result(out / "result.h5", result)
+    (out / "summary.json").write_text(json.dumps(summary(result), indent=2) + "\n")
+    if figures:
+        import matplotlib.pyplot as plt
+
+        figs = {"history.png": plots.plot_history(result), "residuals.png": plots.plot_residuals(result)}
+        try:
+            figs["factors.png"] = plots.plot_factors(result)
+        except NotPositiveError:
+            pass  # the alignment could not be made; summary.json says why
+        figs.update(result.model.figures(result.best.params, result.target))
+        for name, fig in figs.items():
+            fig.savefig(out / name, dpi=110)
+            plt.close(fig)
+    return out

@@ -1,0 +1,50 @@
+"""Writing results: output directories and CSV tables, one way for every command and experiment."""
+
+from __future__ import annotations
+
+import csv
+import os
+from pathlib import Path
+
+from .errors import OutputError
+
+__all__ = ["ensure_directory", "write_csv"]
+
+
+def ensure_directory(path: str | os.PathLike) -> Path:
+    """Create the directory ``path`` (and its parents) if needed and return it.
+
+    Raises
+    ------
+    OutputError
+        If a file stands in the way or the directory cannot be created.
+    """
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"cannot write into {out}: it is a file, not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create the output directory {out}: {exc}") from exc
+    return out
+
+
+def write_csv(path: str | os.PathLike, rows: list[dict]) -> Path:
+    """Write rows (dicts with the same keys, in the order of the first) as a CSV file with a header line.
+
+    Raises
+    ------
+    OutputError
+        If there are no rows or the file cannot be written.
+    """
+    path = Path(path)
+    if not rows:
+        raise OutputError(f"no rows to write to {path}")
+    try:
+        with open(path, "w", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc}") from exc
+    return path

@@ -1,0 +1,87 @@
+"""Checkpoints and result files: integrity (a damaged file is refused by name), order of starts, resumed times."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+import pytest
+
+from shspec import HarmonicModel
+from shspec.errors import CheckpointError
+from shspec.inverse import (FitOptions, FitResult, Stage, StartResult, blob_factor, fit, harmonic_target,
+                            load_result_summary, save_result)
+from shspec.inverse import optimize as optimize_module
+
+
+@pytest.fixture(scope="module")
+def small():
+    return harmonic_target(blob_factor(), 8, 20), HarmonicModel(8, 6)
+
+
+def _interrupted_checkpoint(small, tmp_path, monkeypatch, at=11):
+    target, model = small
+    opts = FitOptions(starts=2, seed=3, max_iter=4, schedule=(Stage(4), Stage(6)), basin_hops=0,
+                      checkpoint_every=2, checkpoint_path=str(tmp_path / "ck.h5"))
+    cls = optimize_module._CLASSES["lm"]
+    original, calls = cls.step, {"n": 0}
+
+    def step(self):
+        calls["n"] += 1
+        if calls["n"] == at:
+            raise KeyboardInterrupt
+        original(self)
+
+    monkeypatch.setattr(cls, "step", step)
+    partial = fit(target, model, opts)
+    monkeypatch.setattr(cls, "step", original)
+    assert partial.interrupted
+    return target, model, opts, partial
+
+
+def test_a_flipped_byte_in_a_checkpoint_is_refused_by_name(small, tmp_path, monkeypatch):
+    target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, monkeypatch)
+    with h5py.File(opts.checkpoint_path, "r+") as f:
+        x = f["current/state/x"]
+        x[0] = np.nextafter(x[0], np.inf)  # one ulp: a silently different resumed fit before checksums
+    with pytest.raises(CheckpointError, match="ck.h5.*checksum"):
+        fit(target, model, opts, resume=True)
+
+
+def test_a_damaged_checkpoint_is_a_checkpoint_error_not_a_traceback(small, tmp_path, monkeypatch):
+    target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, monkeypatch)
+    with h5py.File(opts.checkpoint_path, "r+") as f:
+        del f["current/base"]
+        f["current/base"] = np.zeros(3)  # a shortened field
+    with pytest.raises(CheckpointError, match="ck.h5"):
+        fit(target, model, opts, resume=True)
+    with open(opts.checkpoint_path, "r+b") as fh:  # truncated file
+        fh.truncate(200)
+    with pytest.raises(CheckpointError, match="ck.h5"):
+        fit(target, model, opts, resume=True)
+
+
+def test_resumed_fit_counts_the_time_of_every_process(small, tmp_path, monkeypatch):
+    target, model, opts, partial = _interrupted_checkpoint(small, tmp_path, monkeypatch)
+    done_before = {r.index: r.seconds for r in partial.starts if r.status != "interrupted"}
+    assert done_before  # the first start finished in the first process
+    resumed = fit(target, model, opts, resume=True)
+    assert resumed.seconds == pytest.approx(sum(r.seconds for r in resumed.starts), rel=1e-12)
+    for r in resumed.starts:
+        if r.index in done_before:
+            assert r.seconds == done_before[r.index]  # read back from the checkpoint, not re-timed
+    assert resumed.seconds > sum(done_before.values())
+
+
+def test_result_file_lists_starts_in_index_order_and_checks_itself(small, tmp_path):
+    target, model = small
+    starts = [StartResult(i, np.full(49, float(i)), float(i), 0.0, 0, 0.0, "x", np.zeros((1, 3)), np.zeros(20))
+              for i in range(12)]
+    result = FitResult(starts=starts, solutions=[0], target=target, options=FitOptions(), model=model, seconds=0.0)
+    path = save_result(tmp_path / "r.h5", result)
+    summary = load_result_summary(path)
+    assert [s.index for s in summary["starts"]] == list(range(12))  # "10" sorts before "2" as HDF5 names
+    assert summary["model"] == model.describe()
+    with h5py.File(path, "r+") as f:
+        f["solution"][3] += 1.0
+    with pytest.raises(CheckpointError, match="r.h5.*checksum"):
+        load_result_summary(path)
