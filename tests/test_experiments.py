@@ -1,13 +1,16 @@
 """Experiments run in --quick mode and write their folder; the HTML report is well formed and links only files."""
 
 import json
+import re
 from html.parser import HTMLParser
 
+import numpy as np
 import pytest
 
 from shspec.cli import main
 from shspec.errors import InvalidArgumentError
 from shspec.experiments import EXPERIMENTS, run_experiment
+from shspec.inverse import load_result_summary
 from shspec.report import build_report
 
 
@@ -28,8 +31,14 @@ def test_quick_run_writes_its_folder(runs, name):
     assert meta["quick"] and meta["experiment"] == name
     report = (folder / "report.md").read_text()
     finding = report.split("## Finding", 1)[1].strip().split("\n\n")[0]
-    assert len(finding) > 200 and any(ch.isdigit() for ch in finding)
-    assert list(folder.glob("*.png")) and list(folder.glob("*.csv"))
+    # a finding states its result with numbers (not boilerplate): several measured values appear in it
+    assert len(re.findall(r"\d+(?:\.\d+)?(?:e[-+]?\d+)?", finding)) >= 3
+    # every figure the report shows was written, and every table it has is a CSV beside it
+    figures = re.findall(r"!\[[^]]*\]\(([^)]+)\)", report)
+    assert figures and all((folder / f).is_file() for f in figures)
+    for table in re.findall(r"^## (\S+)$", report, flags=re.M):
+        if table not in ("Finding", "Parameters"):
+            assert (folder / f"{table}.csv").is_file()
 
 
 def test_sh_convergence_finds_above_and_below(runs):
@@ -60,8 +69,14 @@ def test_pl_perturbation_error_grows_with_p(runs):
 def test_sh_inverse_reports_every_fit(runs):
     numbers = json.loads((runs / "sh-inverse" / "meta.json").read_text())["numbers"]
     assert set(numbers) == {"raw", "regularized", "structured"}
-    assert all(v["spectral_energy"] >= 0 and v["iterations"] > 0 for v in numbers.values())
-    assert list((runs / "sh-inverse").glob("fit_*.h5"))
+    for name, v in numbers.items():
+        best = min(load_result_summary(runs / "sh-inverse" / f"fit_{name}.h5")["starts"], key=lambda s: s.energy)
+        assert v["energy"] == best.energy and v["iterations"] == best.iterations > 0
+        # the spectral energy is recomputed from the best start's eigenvalues, without the regularizer
+        target = load_result_summary(runs / "sh-inverse" / f"fit_{name}.h5")["target"][:best.eigenvalues.size]
+        expected = 0.5 * np.sum(((best.eigenvalues[1:] - target[1:]) / target[1:]) ** 2)
+        assert v["spectral_energy"] == pytest.approx(expected, rel=1e-12)
+    assert numbers["raw"]["spectral_energy"] == pytest.approx(numbers["raw"]["energy"], rel=1e-12)
 
 
 class _Checker(HTMLParser):

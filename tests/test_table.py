@@ -98,8 +98,31 @@ def test_bad_limits_and_inputs():
         GauntTable(4, 2, np.zeros(3))
 
 
-def test_larger_table_entries_match_the_accurate_scalar_path():
-    """Most families of a table come from the truncated forward recursion; spot-check them against real_gaunt."""
+def test_larger_table_entries_match_quadrature():
+    """Most families of a (40, 20) table come from the truncated forward recursion; check whole slices G_{..k}
+    against Gauss–Legendre quadrature of Y_i Y_j Y_k with harmonics from scipy (no 3j symbol involved)."""
+    from shspec.sphere.evaluate import harmonic_matrix
+
+    lb, la = 40, 20
+    table = build_table(lb, la)
+    grid = glq_grid((2 * lb + la) // 2 + 1)  # exact for polynomial degree 2·Lb + La
+    Y = harmonic_matrix(grid.unit_vectors().reshape(-1, 3), lb)
+    w = grid.weights.ravel()
+    rng = np.random.default_rng(3)
+    ks = [0, 4, 6, 8, (la + 1) ** 2 - 1, *rng.integers(0, (la + 1) ** 2, 6)]
+    for k in ks:
+        e = np.zeros((la + 1) ** 2)
+        e[k] = 1.0
+        quad = Y.T @ ((w * Y[:, k])[:, None] * Y)
+        np.testing.assert_allclose(table.mass_matrix(e), quad, rtol=0, atol=5e-14)
+
+
+def test_verify_table_reports_the_worst_sampled_entry():
+    """verify_table recomputes entries through real_gaunt (the same double recursion): it must find a planted error."""
     from shspec.gaunt.cache import verify_table
 
-    assert verify_table(build_table(40, 20), samples=3000, seed=3) < 5e-15
+    table = build_table(12, 6)
+    assert verify_table(table, samples=500, seed=3) < 5e-15
+    damaged = GauntTable(12, 6, table.values.copy())
+    damaged.values[:] += 1e-9
+    assert verify_table(damaged, samples=500, seed=3) > 5e-10

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from ..embed.embed import EmbedOptions, embed
-from ..errors import InvalidArgumentError
+from ..errors import InvalidArgumentError, OutputError
+from ..pipeline.validation import ValidationOptions, validate_target, write_report
 from ..mesh.io import load_mesh, save_mesh
 
 
@@ -58,11 +60,11 @@ def _embed(args) -> int:
 
 
 def _validate(args) -> int:
-    from ..pipeline.validation import ValidationOptions, validate_target, write_report
-
-    kind, _, path = args.target.partition(":")
-    if kind != "mesh" or not path:
+    scheme, _, path = args.target.partition(":")
+    if scheme != "mesh" or not path:
         raise InvalidArgumentError(f"--target must be mesh:PATH, got {args.target!r}")
+    if args.out.exists() and not args.out.is_dir():
+        raise OutputError(f"--out {args.out} is a file; give a directory")
     mesh = load_mesh(Path(path))
     opt = ValidationOptions(numeig=args.numeig, lmax=args.lmax, lmax_factor=args.lmax_factor, fit=not args.no_fit)
     result = validate_target(mesh, opt, name=Path(path).stem, log=print)
@@ -70,4 +72,8 @@ def _validate(args) -> int:
     s = result.summary
     print(f"hausdorff_relative {s['hausdorff_relative']:.4g}  edge_length_error {s['edge_length_error']:.4g}  "
           f"report {report}")
-    return 0
+    failed = {step: why for step, why in s["status"].items() if why.startswith("failed")}
+    for step, why in s["status"].items():
+        if why.startswith(("failed", "skipped")) and why != "skipped: disabled":
+            print(f"shspec validate: step {step} {why}", file=sys.stderr)
+    return 1 if failed else 0

@@ -29,7 +29,9 @@ import numpy as np
 
 from ..embed.distances import surface_distance
 from ..embed.embed import EmbedOptions, EmbedResult, embed
+from ..checks import check_int
 from ..errors import InvalidArgumentError
+from ..inverse import FitOptions, Target, fit
 from ..mesh.cmcf import cmcf
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.model import MeshModel
@@ -39,9 +41,7 @@ __all__ = ["RecursiveOptions", "RefinementPass", "RecursiveResult", "recursive_f
 
 
 def _default_fit_options():
-    from ..inverse import FitOptions
-
-    return FitOptions(starts=1, max_iter=40, reg=1e-5, start_amplitude=0.02)
+    return FitOptions(schedule=(), basin_hops=0, starts=1, max_iter=40, reg=1e-5, start_amplitude=0.02)
 
 
 @dataclass(frozen=True)
@@ -67,10 +67,7 @@ class RecursiveOptions:
     warm_start: bool = True
 
     def __post_init__(self):
-        from ..inverse import FitOptions
-
-        if isinstance(self.passes, bool) or not isinstance(self.passes, (int, np.integer)) or self.passes < 1:
-            raise InvalidArgumentError(f"RecursiveOptions.passes must be a positive integer, got {self.passes!r}")
+        check_int(self.passes, "RecursiveOptions.passes", minimum=1)
         if not isinstance(self.fit, FitOptions):
             raise InvalidArgumentError("RecursiveOptions.fit must be FitOptions")
         if not isinstance(self.embed, EmbedOptions):
@@ -91,7 +88,7 @@ class RefinementPass:
         Its re-embedding.
     fit_residual : float
         max_i |λ_i/λ*_i − 1| (i ≥ 1) of the fitted model.
-    spectral_error : float
+    spectral_rms_error : float
         RMS over i ≥ 1 of |λ_i/λ*_i − 1| for the re-embedded surface's own PL spectrum.
     hausdorff_relative, chamfer_relative : float or None
         Distances of the re-embedded surface to the target mesh over its bounding-box diagonal (None without one).
@@ -105,7 +102,7 @@ class RefinementPass:
     factors: np.ndarray = field(repr=False)
     embedding: EmbedResult = field(repr=False)
     fit_residual: float
-    spectral_error: float
+    spectral_rms_error: float
     hausdorff_relative: float | None
     chamfer_relative: float | None
     fit_status: str
@@ -146,8 +143,6 @@ def recursive_fit(target, sphere: TriangleMesh | None = None, options: Recursive
     InvalidArgumentError
         No sphere given and the target has none; wrong types.
     """
-    from ..inverse import Target, fit
-
     opt = options if options is not None else RecursiveOptions()
     if not isinstance(opt, RecursiveOptions):
         raise InvalidArgumentError(f"options must be RecursiveOptions, got {type(opt).__name__}")
@@ -174,7 +169,7 @@ def recursive_fit(target, sphere: TriangleMesh | None = None, options: Recursive
             d = surface_distance(emb.mesh, target.mesh)
             haus, cham = d.hausdorff_relative, d.chamfer_relative
         passes.append(RefinementPass(sphere=sphere, factors=c, embedding=emb, fit_residual=float(best.relative_residual),
-                                     spectral_error=spec, hausdorff_relative=haus, chamfer_relative=cham,
+                                     spectral_rms_error=spec, hausdorff_relative=haus, chamfer_relative=cham,
                                      fit_status=str(best.status), cpu_seconds=time.process_time() - cpu))
         say(f"pass {p + 1}: fit residual {best.relative_residual:.3g} ({best.status}), strain "
             f"{emb.edge_error_rms:.3g}, spectral error {spec:.3g}, Hausdorff {haus}")

@@ -8,17 +8,14 @@ Steps (each reported with a status, never faked):
    the bunny, whose factors span seven decades); the fitted factors (step 4); the re-embedded meshes.
 3. Re-embedding of c (:func:`~shspec.embed.embed`), its edge-length error, folds, self-intersections, bump/dip
    ambiguity, Hausdorff/Chamfer distance to the target after rigid alignment, and the factor error of the
-   re-embedded mesh: its own cMCF factors against the target's, as rotation-invariant per-degree power (and after
-   Möbius + O(3) alignment when :func:`shspec.inverse.align` is available).
+   re-embedded mesh: its own cMCF factors against the target's, as rotation-invariant per-degree power and after
+   Möbius + O(3) alignment (:func:`shspec.inverse.align`).
 4. The inverse fit (:func:`shspec.inverse.fit`, harmonic model) of the target's PL spectrum, its factor error after
-   alignment, and the re-embedding of the fitted factors sampled on the cMCF sphere.  Runs only if the inverse
-   package exports ``fit``, ``FitOptions``, ``mesh_target`` and ``align``; otherwise it is marked "skipped" with the
-   reason.
+   alignment, and the re-embedding of the fitted factors sampled on the cMCF sphere.
 """
 
 from __future__ import annotations
 
-import importlib
 import json
 import time
 from dataclasses import asdict, dataclass, field
@@ -29,15 +26,21 @@ import numpy as np
 from ..embed.ambiguity import AmbiguityReport, detect_ambiguity
 from ..embed.distances import SurfaceDistance, surface_distance
 from ..embed.embed import EmbedOptions, EmbedResult, embed
+from ..checks import check_int
 from ..errors import InvalidArgumentError, NotPositiveError, ShspecError
-from ..mesh.bridge import fit_harmonic
-from ..sphere.evaluate import sample_harmonic
+from ..galerkin.solver import HarmonicModel
+from ..inverse import FitOptions, align, fit, mesh_target
+from ..io import ensure_directory
+from ..mesh.bridge import fit_harmonic, mesh_band_limit
 from ..mesh.cmcf import CMCFResult, cmcf
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.model import MeshModel
 from ..mesh.triangle_mesh import TriangleMesh
+from ..sphere.evaluate import sample_harmonic
+from ..report import validation_markdown
+from ..sphere.rotate import power_spectrum
 
-__all__ = ["ValidationOptions", "ValidationResult", "validate_target", "write_report", "inverse_api"]
+__all__ = ["ValidationOptions", "ValidationResult", "validate_target", "write_report"]
 
 
 @dataclass(frozen=True)
@@ -71,8 +74,7 @@ class ValidationOptions:
     def __post_init__(self):
         for name in ("numeig", "lmax", "lmax_factor", "fit_starts"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise InvalidArgumentError(f"ValidationOptions.{name} must be a positive integer, got {value!r}")
+            check_int(value, f"ValidationOptions.{name}", minimum=1)
         if self.numeig < 2:
             raise InvalidArgumentError("ValidationOptions.numeig must be >= 2")
         if not isinstance(self.embed, EmbedOptions):
@@ -116,37 +118,18 @@ class ValidationResult:
     summary: dict = field(repr=False)
 
 
-def inverse_api():
-    """The inverse solver's functions (fit, FitOptions, mesh_target, align) as a tuple, or a string saying why not."""
-    try:
-        inv = importlib.import_module("shspec.inverse")
-    except ImportError as exc:
-        return f"shspec.inverse cannot be imported ({exc})"
-    missing = [n for n in ("fit", "FitOptions", "mesh_target", "align") if not hasattr(inv, n)]
-    if missing:
-        return f"shspec.inverse does not export {', '.join(missing)} (yet)"
-    return inv.fit, inv.FitOptions, inv.mesh_target, inv.align
-
-
-def _power(coeffs: np.ndarray) -> np.ndarray:
-    """Per-degree power Σ_m a_lm² (rotation and reflection invariant), (L+1,)."""
-    lmax = int(round(np.sqrt(coeffs.size))) - 1
-    return np.array([np.sum(coeffs[l * l:(l + 1) ** 2] ** 2) for l in range(lmax + 1)])
-
-
-def _factor_comparison(sphere_a, c_a, sphere_b, c_b, la, align_fn):
-    """Relative per-degree power error (and aligned L2 error if ``align_fn``) of two per-vertex factor fields."""
+def _factor_comparison(sphere_a, c_a, sphere_b, c_b, la):
+    """Relative per-degree power error and aligned L2 error of two per-vertex factor fields."""
     a = fit_harmonic(sphere_a, c_a, la).coefficients
     b = fit_harmonic(sphere_b, c_b, la).coefficients
-    pa, pb = _power(a), _power(b)
+    pa, pb = power_spectrum(a), power_spectrum(b)
     out = {"power_error": float(np.linalg.norm(pa - pb) / np.linalg.norm(pb))}
-    if align_fn is not None:
-        try:
-            out["aligned_l2_error"] = float(align_fn(a, b).relative_error)
-        except ShspecError as exc:
-            # Möbius centering needs ρ > 0; a band-limited expansion of extreme factors (the bunny's) is not.
-            out["aligned_l2_error"] = None
-            out["aligned_l2_error_skipped"] = str(exc)
+    try:
+        out["aligned_l2_error"] = float(align(a, b).relative_error)
+    except ShspecError as exc:
+        # Möbius centering needs ρ > 0; a band-limited expansion of extreme factors (the bunny's) is not.
+        out["aligned_l2_error"] = None
+        out["aligned_l2_error_skipped"] = str(exc)
     return out
 
 
@@ -181,7 +164,7 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
     say = log if log is not None else (lambda _msg: None)
     start = time.perf_counter()
     k = min(opt.numeig, mesh.nvertices - 1)
-    la = min(opt.lmax_factor, int(np.sqrt(mesh.nvertices / 2)) - 1)
+    la = mesh_band_limit(mesh.nvertices, opt.lmax_factor)
     status, spectra, times = {}, {}, {}
 
     t = time.perf_counter()
@@ -194,8 +177,6 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
     spectra["cmcf_pl"] = MeshModel(flow.sphere).spectrum(flow.factors, k).eigenvalues
     expansion = fit_harmonic(flow.sphere, flow.factors, la)
     try:
-        from ..galerkin.solver import HarmonicModel
-
         spectra["cmcf_harmonic"] = HarmonicModel(opt.lmax, la).spectrum(expansion.coefficients, k).eigenvalues
         status["cmcf_harmonic"] = "ok"
     except NotPositiveError as exc:
@@ -211,28 +192,21 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
     amb = detect_ambiguity(flow.sphere, emb, embed_options=opt.embed) if opt.ambiguity else None
     status["ambiguity"] = "ok" if opt.ambiguity else "skipped: disabled"
 
-    api = inverse_api()
-    align_fn = api[3] if isinstance(api, tuple) else None
     t = time.perf_counter()
     re_flow = cmcf(emb.mesh)
     factor_errors = {"embedded_vs_cmcf": _factor_comparison(re_flow.sphere, re_flow.factors, flow.sphere,
-                                                            flow.factors, la, align_fn)}
+                                                            flow.factors, la)}
     times["factor_errors"] = time.perf_counter() - t
 
     fit_emb = fit_dist = None
     fit_info = {}
     if not opt.fit:
         status["fit"] = "skipped: disabled"
-    elif not isinstance(api, tuple):
-        status["fit"] = f"skipped: {api}"
     else:
-        fit_fn, FitOptions, mesh_target, align = api
         try:
-            from ..galerkin.solver import HarmonicModel
-
             t = time.perf_counter()
             target = mesh_target(mesh, opt.lmax, k, la, source="pl", name=name)
-            result = fit_fn(target, HarmonicModel(opt.lmax, la), FitOptions(starts=opt.fit_starts))
+            result = fit(target, HarmonicModel(opt.lmax, la), FitOptions(schedule=(), basin_hops=0, starts=opt.fit_starts))
             times["fit"] = time.perf_counter() - t
             coeffs = np.asarray(result.best.params, dtype=float)
             al = align(coeffs, expansion.coefficients)
@@ -309,8 +283,7 @@ def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int =
 
     if not isinstance(result, ValidationResult):
         raise InvalidArgumentError(f"expected a ValidationResult, got {type(result).__name__}")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = ensure_directory(out_dir)
     s = result.summary
     (out / "summary.json").write_text(json.dumps(s, indent=1))
 
@@ -358,55 +331,7 @@ def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int =
     fig.savefig(out / "spectra.png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
 
-    rows = "\n".join(f"| {key} | {v:.3g} |" for key, v in s["spectral_error"].items())
-    status = "\n".join(f"| {key} | {v} |" for key, v in s["status"].items())
-    fe = s["factor_errors"]["embedded_vs_cmcf"]
-    caps = ""
-    if s["ambiguity"] is not None:
-        caps = "\n".join(f"| {c['kind']} | {c['area_fraction']:.3f} | {c['rms_original']:.3g} | "
-                         f"{c['rms_mirrored']:.3g} | {'yes' if c['ambiguous'] else 'no'} |" for c in s["ambiguity"]["caps"])
-        caps = ("\n## Bumps and dips\n\nCaps (regions of positive Gaussian curvature) mirrored through the plane of "
-                "their rim and relaxed; *ambiguous* means the edge lengths fit about as well either way, so the "
-                "pressure prior (outwards) made the choice.\n\n| kind | area fraction | rms strain as embedded | "
-                f"rms strain mirrored | ambiguous |\n|---|---|---|---|---|\n{caps}\n\n![caps](ambiguity.png)\n")
-    text = f"""# Validation of `{s['name']}` ({s['nvertices']} vertices)
-
-Generated by `shspec validate`. Numbers: `summary.json`.
-
-## Re-embedding of the target's cMCF factors
-
-| quantity | value |
-|---|---|
-| relative edge-length error (rms / max) | {s['edge_length_error']:.3g} / {s['edge_length_error_max']:.3g} |
-| Hausdorff / bounding-box diagonal | {s['hausdorff_relative']:.3g} |
-| Chamfer / bounding-box diagonal | {s['chamfer_relative']:.3g} |
-| folded faces / self-intersections | {s['folded_faces']} / {s['self_intersections']} |
-| continuation steps / Levenberg–Marquardt iterations | {s['embed_steps']} / {s['embed_iterations']} |
-| time (s) | {s['embed_seconds']:.1f} |
-| factor error of the re-embedded mesh (per-degree power, La = {s['lmax_factor']}) | {fe['power_error']:.3g} |
-| factor error of the re-embedded mesh (L2 after Möbius + O(3) alignment) | {fe.get('aligned_l2_error')} |
-| factor range of the target (min / max c) | {s['cmcf']['factor_min']:.3g} / {s['cmcf']['factor_max']:.3g} |
-
-![meshes](meshes.png)
-
-![factors](factors.png)
-
-## Spectra (first {s['numeig']} eigenvalues)
-
-Largest relative deviation from the target's PL spectrum, i ≥ 1:
-
-| source | max_i \\|λ_i/λ_i(target) − 1\\| |
-|---|---|
-{rows}
-
-![spectra](spectra.png)
-{caps}
-## Steps
-
-| step | status |
-|---|---|
-{status}
-"""
+    text = validation_markdown(s)
     path = out / "report.md"
     path.write_text(text)
     return path
