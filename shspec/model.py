@@ -17,6 +17,7 @@ A fit asks more of a model, and everything that differs between discretizations 
   :meth:`~SpectralModel.restrict`, :meth:`~SpectralModel.enter_level`): the factor's degree for harmonic models,
   none for meshes;
 * :meth:`~SpectralModel.invariant` (what tells two solutions apart up to the spectrum's symmetries),
+  :meth:`~SpectralModel.symmetry_directions` (the continuous symmetries, counted out of identifiability),
   :meth:`~SpectralModel.escape_moves` (moves between local minima that keep the invariant),
   :meth:`~SpectralModel.to_factor` (the parameters as a harmonic ρ), :meth:`~SpectralModel.compare` and
   :meth:`~SpectralModel.figures` (model-specific comparison with a known truth), :meth:`~SpectralModel.describe`.
@@ -146,6 +147,11 @@ class SpectralModel(ABC):
     def invariant(self, params: np.ndarray, level: int | None = None) -> np.ndarray:
         """What identifies a solution up to the spectrum's symmetries (default: the parameters themselves)."""
         return np.asarray(params, dtype=float)
+
+    def symmetry_directions(self, params: np.ndarray) -> np.ndarray:
+        """Tangent vectors (nparams, r) at ``params`` of the continuous symmetries the spectrum cannot see (the
+        rotations of a harmonic ρ); the identifiability analysis counts them out.  Default: none, (nparams, 0)."""
+        return np.zeros((self.nparams, 0))
 
     def escape_moves(self, params: np.ndarray, level: int | None = None) -> list:
         """Parameter vectors (nparams,) that keep :meth:`invariant` but may lie in another basin (basin hops).

@@ -153,3 +153,68 @@ def test_not_positive_and_bad_input(model):
         Objective(model, target, eigenvalue_weights(target), Parametrization(np.zeros(9), [4]))
     with pytest.raises(InvalidArgumentError):
         Parametrization(a, [99])
+
+
+# -- identifiability ---------------------------------------------------------------------------------------------
+
+def test_identifiability_singular_values_match_a_finite_difference_jacobian():
+    from shspec.inverse.identifiability import identifiability
+    from shspec.sphere.random import random_centred_coefficients
+
+    model = HarmonicModel(10, 3)
+    a = random_centred_coefficients(5, 3, 0.2)
+    k = 40
+    ident = identifiability(model, a, k)
+    free = model.free_parameters(False)
+    lam = model.spectrum(a, k).eigenvalues
+    h = 1e-6
+    fd = np.empty((k - 1, free.size))
+    for c, j in enumerate(free):
+        e = np.zeros_like(a)
+        e[j] = h
+        fd[:, c] = ((model.spectrum(a + e, k).eigenvalues - model.spectrum(a - e, k).eigenvalues) / (2 * h))[1:]
+    fd /= lam[1:, None]
+    # the three rotations are the null space: drop the 3 smallest singular values of the full FD Jacobian
+    s_fd = np.linalg.svd(fd, compute_uv=False)[:free.size - 3]
+    assert ident.symmetries == 3 and ident.directions == free.size - 3 and not ident.underdetermined
+    np.testing.assert_allclose(ident.singular_values, s_fd, rtol=1e-5)
+    assert ident.condition == pytest.approx(s_fd[0] / s_fd[-1], rel=1e-4)
+
+
+def test_identifiability_counts_out_only_the_rotations_an_axisymmetric_rho_has():
+    from shspec.inverse.identifiability import identifiability
+
+    model = HarmonicModel(10, 4)
+    a = np.zeros(25)
+    a[0], a[6], a[12], a[20] = np.sqrt(4 * np.pi), 0.3, 0.1, 0.05  # degrees 2, 3, 4 with m = 0
+    ident = identifiability(model, a, 60)
+    assert ident.symmetries == 2  # the rotation about z leaves it fixed; the other two move it
+    generic = a.copy()
+    generic[7] = 0.05
+    assert identifiability(model, generic, 60).symmetries == 3
+
+
+def test_identifiability_reports_underdetermined_and_predicts_the_linear_error():
+    from shspec.inverse.identifiability import identifiability
+    from shspec.sphere.random import random_centred_coefficients
+
+    model = HarmonicModel(10, 4)
+    a = random_centred_coefficients(6, 4, 0.2)
+    few = identifiability(model, a, 10)  # 9 informative eigenvalues, 21 - 3 directions
+    assert few.underdetermined and few.rank <= 9 and few.condition == np.inf
+    assert "cannot determine" in few.statement()
+    # a small move along a determined direction is what the residual it causes says
+    k = 80
+    ident = identifiability(model, a, k)
+    free = model.free_parameters(False)
+    v = np.zeros_like(a)
+    v[free] = np.random.default_rng(7).standard_normal(free.size)
+    T = model.symmetry_directions(a)
+    v -= T @ np.linalg.lstsq(T, v, rcond=None)[0]  # remove the rotations: the spectrum cannot see them
+    q = a + 1e-6 * v / np.linalg.norm(v) * np.linalg.norm(a)
+    lam_a, lam_q = model.spectrum(a, k).eigenvalues, model.spectrum(q, k).eigenvalues
+    r = np.zeros(k)
+    r[1:] = (lam_q[1:] - lam_a[1:]) / lam_a[1:]
+    est = identifiability(model, a, k, residuals=r).estimated_error
+    assert est == pytest.approx(1e-6, rel=1e-3)
+    assert ident.noise_gain > 0 and ident.estimated_error is None

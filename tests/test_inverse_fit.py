@@ -252,3 +252,55 @@ def test_cli_mesh_fit_with_default_schedule(tmp_path):
         assert key in summary
     for name in ("vertex_factors.png", "validation.png", "history.png"):
         assert (out / name).stat().st_size > 0
+
+
+def test_fit_from_a_given_start_begins_there(small, tmp_path):
+    target, model = small
+    truth = target.truth.coefficients
+    result = fit(target, model, FitOptions(starts=2, max_iter=5), init=truth)
+    first = result.starts[0]
+    assert first.history[0, 2] < 1e-12 and first.iterations == 0  # the truth is already the solution
+    np.testing.assert_array_equal(first.params, truth)
+    assert not np.array_equal(result.starts[1].params, truth)  # the other starts stay random
+    with pytest.raises(InvalidArgumentError, match="starting point"):
+        fit(target, model, FitOptions(starts=1), init=np.ones(3))
+
+
+def test_cli_init_continues_from_a_previous_fit(tmp_path):
+    first, second = tmp_path / "a", tmp_path / "b"
+    args = ["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "1",
+            "--max-iter", "3", "--schedule", "2,6", "--basin-hops", "0", "--quiet"]
+    assert main([*args, "--out", str(first)]) == 0
+    again = [*args[:-5], "--schedule", "auto", "--basin-hops", "0", "--quiet"]
+    assert main([*again, "--out", str(second), "--init", str(first / "summary.json")]) == 0
+    from shspec.inverse import load_result_summary
+
+    a = load_result_summary(first / "result.h5")
+    b = load_result_summary(second / "result.h5")
+    # with a given start the default schedule is one stage at full degree: it begins exactly where the first ended
+    np.testing.assert_allclose(b["starts"][0].history[0, 1], a["starts"][0].history[-1, 1], rtol=1e-9)
+    assert b["starts"][0].energy <= a["starts"][0].energy
+    assert main([*args, "--out", str(tmp_path / "c"), "--init", str(tmp_path / "missing.npy")]) == 1
+
+
+def test_starts_on_an_executor_equal_the_serial_run(small):
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from distributed import Client, LocalCluster
+
+    target, model = small
+    opts = FitOptions(starts=3, seed=4, max_iter=3, schedule=(Stage(4), Stage(6)), basin_hops=0)
+    serial = fit(target, model, opts)
+    # spawn, not fork: numba's OpenMP threads make fork unsafe (shspec.parallel.make_executor does the same)
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        pooled = fit(target, model, opts, executor=pool)
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        dasked = fit(target, model, opts, executor=client.get_executor())
+    for other in (pooled, dasked):
+        assert [r.index for r in other.starts] == [0, 1, 2]
+        assert other.solutions == serial.solutions
+        for a, b in zip(serial.starts, other.starts):
+            np.testing.assert_allclose(b.params, a.params, rtol=1e-10, atol=1e-14)
+            np.testing.assert_allclose(b.history[:, 1:], a.history[:, 1:], rtol=1e-8, atol=1e-300)

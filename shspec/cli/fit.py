@@ -7,8 +7,12 @@ fit; the discretizations it can fit are listed in ``MODELS``.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
+
+import h5py
+import numpy as np
 
 from ..errors import InvalidArgumentError, OutputError
 from ..galerkin import HarmonicModel
@@ -17,6 +21,7 @@ from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions, pa
 from ..inverse.schedule import degree_ramp, numeig_ramp
 from ..targets import TARGET_SOURCES, Target, parse_target
 from ..mesh.model import MeshModel
+from ..sphere.harmonics import as_coefficients
 
 
 def _harmonic(args, target: Target) -> HarmonicModel:
@@ -28,6 +33,41 @@ def _mesh(args, target: Target) -> MeshModel:
         raise InvalidArgumentError("--model mesh needs a mesh target (star:... or mesh:...): it fits per-vertex "
                                    "factors on the target's cMCF sphere")
     return MeshModel(target.sphere, lmax_factor=args.lmax_factor)
+
+
+def read_initial(path: Path, model) -> np.ndarray:
+    """A starting point for ``model`` from a file: a previous fit's ``result.h5`` (its solution) or
+    ``summary.json`` (its cilm), a ``.npy`` array, or text with one value per line.  Harmonic coefficients (flat or
+    cilm) are zero-padded to the model's La; coefficients above it must be 0.
+
+    Raises
+    ------
+    InvalidArgumentError
+        If the file cannot be read or does not fit the model.
+    """
+    try:
+        if path.suffix == ".h5":
+            with h5py.File(path, "r") as f:
+                value = f["solution"][()]
+        elif path.suffix == ".json":
+            value = np.array(json.loads(path.read_text())["cilm"], dtype=float)
+        elif path.suffix == ".npy":
+            value = np.load(path, allow_pickle=False)
+        else:
+            value = np.loadtxt(path, ndmin=1)
+    except (OSError, KeyError, ValueError, TypeError) as exc:
+        raise InvalidArgumentError(f"cannot read a starting point from {path}: {exc}") from None
+    if isinstance(model, HarmonicModel):
+        a = as_coefficients(value)
+        if a.size > model.nparams and np.any(a[model.nparams:] != 0):
+            raise InvalidArgumentError(f"the starting rho in {path} has degree > La = {model.lmax_factor}")
+        out = np.zeros(model.nparams)
+        out[:min(a.size, out.size)] = a[:out.size]
+        return out
+    value = np.asarray(value, dtype=float).ravel()
+    if value.shape != (model.nparams,):
+        raise InvalidArgumentError(f"{path} holds {value.size} values; the mesh model has {model.nparams} vertices")
+    return value
 
 
 #: The discretizations ``--model`` chooses from: name -> builder(args, target).
@@ -72,6 +112,10 @@ def register(subparsers) -> None:
     p.add_argument("--source", choices=TARGET_SOURCES, default="pl",
                    help="spectrum of a mesh target: its cotan spectrum or the harmonic one of its factors")
     p.add_argument("--subdivisions", type=int, default=3, help="icosphere subdivisions of star targets")
+    p.add_argument("--init", type=Path, default=None, metavar="FILE",
+                   help="starting point of the first start: a previous fit's result.h5 or summary.json, a .npy "
+                   "array (flat coefficients or cilm; per-vertex factors for --model mesh) or a text column; with "
+                   "--schedule auto the fit from it is one stage at full degree")
     p.add_argument("--checkpoint-every", type=int, default=d.checkpoint_every, metavar="N",
                    help="write DIR/checkpoint.h5 every N iterations (0: never)")
     p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.h5")
@@ -108,8 +152,11 @@ def _fit(args) -> int:
     if not args.quiet:
         print(f"fitting {target.name}: {target.numeig} eigenvalues, {model.describe()}, {options.starts} starts",
               file=sys.stderr)
-    result = fit(target, model, options, resume=args.resume)
+    init = None if args.init is None else read_initial(args.init, model)
+    result = fit(target, model, options, resume=args.resume, init=init)
     result.write(out)
+    ident = result.identifiability()
+    print(("warning: " if ident.underdetermined else "") + ident.statement(), file=sys.stderr)
     best = result.best
     print(f"best start {best.index}: energy {best.energy:.3e}, max relative residual {best.relative_residual:.3e}; "
           f"{result.success_count}/{len(result.starts)} starts succeeded (residual <= {options.success_tol:g}); "

@@ -26,7 +26,7 @@ from ..gaunt.cache import get_table
 from ..gaunt.table import GauntTable
 from ..model import SpectralModel, Spectrum, regularization_weight
 from ..sphere.factor import ConformalFactor, as_factor
-from ..sphere.harmonics import check_degree, degrees, ncoeffs
+from ..sphere.harmonics import check_degree, degree_order, degrees, ncoeffs
 from ..sphere.random import random_coefficients
 from ..sphere.rotate import power_spectrum, rotate_coefficients
 
@@ -244,6 +244,26 @@ class HarmonicModel(SpectralModel):
     def invariant(self, params: np.ndarray, level: int | None = None) -> np.ndarray:
         """Per-degree power Σ_m a_lm² (La+1,): invariant under O(3)."""
         return power_spectrum(np.asarray(params, dtype=float))
+
+    def symmetry_directions(self, params: np.ndarray) -> np.ndarray:
+        """The three rotation generators applied to ρ, (nparams, 3): L_z exactly (a_{l,m} ↦ −m a_{l,−m},
+        a_{l,−m} ↦ m a_{l,m}), and L_z conjugated by the exact rotations (pyshtools) that take z to two other axes.
+        Each column is in the null space of the Jacobian: rotations leave the spectrum unchanged.  A column is 0
+        where ρ is symmetric about that axis."""
+        a = np.asarray(params, dtype=float)
+        if a.shape != (self.nparams,):
+            raise InvalidArgumentError(f"expected {self.nparams} coefficients, got shape {a.shape}")
+        l, m = degree_order(self.lmax_factor)
+        partner = np.arange(a.size) - 2 * m  # the index of (l, −m)
+
+        def lz(v):
+            return np.where(m > 0, -m * v[partner], 0.0) + np.where(m < 0, -m * v[partner], 0.0)
+
+        out = [lz(a)]
+        for angles in ((0.0, np.pi / 2, 0.0), (0.0, np.pi / 2, np.pi / 2)):
+            inverse = (-angles[2], -angles[1], -angles[0])
+            out.append(rotate_coefficients(lz(rotate_coefficients(a, np.array(inverse))), np.array(angles)))
+        return np.stack(out, axis=1)
 
     def escape_moves(self, params: np.ndarray, level: int | None = None) -> list:
         """Power-preserving moves of one degree block l ≥ 2 (l ≤ level): its half-turns about the z, y and x axes,

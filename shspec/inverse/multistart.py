@@ -7,7 +7,9 @@ BLAS threads); each writes checkpoints if asked, and Ctrl-C ends the fit cleanly
 
 from __future__ import annotations
 
+import hashlib
 import sys
+from concurrent.futures import Executor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -47,8 +49,34 @@ def distinct_solutions(starts: list, model: SpectralModel, tol: float) -> list:
     return reps
 
 
+def _run_fresh_start(problem: FitProblem, index: int) -> StartResult:
+    """One start from scratch (the task sent to an executor's worker): no checkpoints inside it."""
+    rng = np.random.default_rng([problem.options.seed, index])
+    return run_start(problem, StartProgress(index, 0, problem.initial(rng, index), None))
+
+
+def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finished: list, checkpoint) -> bool:
+    """Run the pending starts on ``executor``; finished starts are appended (and checkpointed) as they complete.
+    Returns True if Ctrl-C stopped it (the running starts are cancelled where the executor can)."""
+    futures = {executor.submit(_run_fresh_start, problem, i): i for i in pending}
+    try:
+        for future in as_completed(futures):
+            finished.append(future.result())
+            if checkpoint is not None:
+                checkpoint(None)
+            if problem.options.progress:
+                r = finished[-1]
+                print(f"  start {r.index} done: {r.status}, max rel. residual {r.relative_residual:.3e} "
+                      f"({len(finished)}/{problem.options.starts})", file=sys.stderr, flush=True)
+    except KeyboardInterrupt:
+        for future in futures:
+            future.cancel()
+        return True
+    return False
+
+
 def fit(target: Target, model: SpectralModel, options: FitOptions | None = None, *, resume: bool = False,
-        ) -> FitResult:
+        init=None, executor: Executor | None = None) -> FitResult:
     """Fit the parameters of ``model`` to the spectrum of ``target`` from several random starts.
 
     Parameters
@@ -60,6 +88,14 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     options : FitOptions, optional
     resume : bool
         Continue from ``options.checkpoint_path`` if that file exists (it must be a checkpoint of the same fit).
+    init : (nparams,) array, optional
+        A starting point (e.g. a prior shape, or the previous pass of a recursive fit) for start 0; the other starts
+        stay random.  With ``options.schedule`` None a fit from ``init`` is one stage at full resolution.
+    executor : concurrent.futures.Executor, optional
+        Run the starts on it (a process pool, or a Dask cluster's ``Client.get_executor()``; see
+        :func:`shspec.parallel.make_executor`): each start is independent and seeded by its index, so the results are
+        those of a serial run.  Finished starts are checkpointed as they arrive; a start still running when the
+        fit stops is run again from its beginning on resume.
 
     Returns
     -------
@@ -83,8 +119,9 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     >>> result = fit(target, HarmonicModel(12, 6), FitOptions(starts=1))  # doctest: +SKIP
     """
     options = FitOptions() if options is None else options
-    problem = FitProblem(model, target, options)
-    fp = fingerprint(options, target.eigenvalues, model.describe())
+    problem = FitProblem(model, target, options, init=init)
+    fp = fingerprint(options, target.eigenvalues, model.describe()
+                     + ("" if init is None else " init " + hashlib.sha256(problem.init.tobytes()).hexdigest()))
     finished: list[StartResult] = []
     current: StartProgress | None = None
     if resume and options.checkpoint_path is not None and Path(options.checkpoint_path).exists():
@@ -95,25 +132,32 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
 
     interrupted = False
     done = {r.index for r in finished}
-    for i in range(options.starts):
-        if i in done:
-            continue
-        if current is None or current.index != i:
-            current = StartProgress(i, 0, problem.initial(np.random.default_rng([options.seed, i])), None)
-        try:
-            finished.append(run_start(problem, current, checkpoint if options.checkpoint_path else None))
-        except KeyboardInterrupt:
-            interrupted = True
-            if options.checkpoint_path:
-                save_checkpoint(options.checkpoint_path, fp, finished, current)
-            if current.params is not None:
-                finished.append(current.result("interrupted", current.seconds, options.success_tol))
-            if options.progress:
-                print("\ninterrupted: the best state so far is kept", file=sys.stderr)
-            break
-        current = None
-        if options.checkpoint_path and options.checkpoint_every:
-            checkpoint(None)
+    if executor is not None:
+        pending = [i for i in range(options.starts) if i not in done]
+        interrupted = _run_parallel(problem, pending, executor, finished,
+                                    checkpoint if options.checkpoint_path else None)
+        if interrupted and options.progress:
+            print("\ninterrupted: the finished starts are kept", file=sys.stderr)
+    else:
+        for i in range(options.starts):
+            if i in done:
+                continue
+            if current is None or current.index != i:
+                current = StartProgress(i, 0, problem.initial(np.random.default_rng([options.seed, i]), i), None)
+            try:
+                finished.append(run_start(problem, current, checkpoint if options.checkpoint_path else None))
+            except KeyboardInterrupt:
+                interrupted = True
+                if options.checkpoint_path:
+                    save_checkpoint(options.checkpoint_path, fp, finished, current)
+                if current.params is not None:
+                    finished.append(current.result("interrupted", current.seconds, options.success_tol))
+                if options.progress:
+                    print("\ninterrupted: the best state so far is kept", file=sys.stderr)
+                break
+            current = None
+            if options.checkpoint_path and options.checkpoint_every:
+                checkpoint(None)
     if not finished:
         raise KeyboardInterrupt
     finished.sort(key=lambda r: r.index)

@@ -13,9 +13,10 @@ import numpy as np
 
 from ..checks import check_float, check_int
 from ..errors import InvalidArgumentError
+from .identifiability import identifiability
 
 __all__ = ["OPTIMIZERS", "WEIGHTINGS", "AREA_MODES", "Stage", "FitOptions", "StartResult", "FitResult",
-           "parse_schedule"]
+           "parse_schedule", "fits_area"]
 
 #: Optimizers: Levenberg–Marquardt on the residuals, limited-memory BFGS, dense BFGS, gradient descent.
 OPTIMIZERS = ("lm", "lbfgs", "bfgs", "gd")
@@ -190,6 +191,11 @@ class FitOptions:
             raise InvalidArgumentError("checkpoint_every > 0 needs a checkpoint_path")
 
 
+def fits_area(options: FitOptions, target) -> bool:
+    """Whether a fit frees the area: ``area="fit"``, or ``"auto"`` with a target whose area is unknown."""
+    return options.area == "fit" or (options.area == "auto" and target.area is None)
+
+
 @dataclass(frozen=True)
 class StartResult:
     """The outcome of one start.
@@ -273,6 +279,17 @@ class FitResult:
         """The best solution as a harmonic :class:`~shspec.sphere.factor.ConformalFactor` (a mesh fit's factors
         expanded in harmonics, :meth:`~shspec.model.SpectralModel.to_factor`)."""
         return self.model.to_factor(self.best.params)
+
+    def identifiability(self):
+        """What the matched eigenvalues determine at the best solution
+        (:func:`~shspec.inverse.identifiability.identifiability`, with its final residuals)."""
+        best = self.best
+        k = best.eigenvalues.size
+        ref = self.target.eigenvalues[:k]
+        rel = np.zeros(k)
+        rel[1:] = (best.eigenvalues[1:] - ref[1:]) / ref[1:]
+        return identifiability(self.model, best.params, k, fit_area=fits_area(self.options, self.target),
+                               residuals=rel)
 
     def to_summary(self) -> dict:
         """A JSON-ready summary: model, target, options, energies and residuals of every start, the best solution

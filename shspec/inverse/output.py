@@ -3,7 +3,9 @@
 The summary holds everything needed to judge the fit without opening the HDF5 file: the model, the target, the
 options, every start (energy, residual, iterations, time, why it stopped, whether it succeeded), the best solution
 as a pyshtools cilm array and, when the target knows its truth, the errors after Möbius + O(3) alignment (and the
-model's own comparison, e.g. per-vertex factor errors on a mesh).  A start *succeeds* when its largest relative
+model's own comparison, e.g. per-vertex factor errors on a mesh), and what the matched eigenvalues determine at
+the solution (``identifiability``: free parameters, rank, condition, estimated error, noise gain; see
+:mod:`shspec.inverse.identifiability`).  A start *succeeds* when its largest relative
 eigenvalue residual max_i |λ_i − λ*_i|/λ*_i (i ≥ 1) is at most ``FitOptions.success_tol``; the summary says so.
 """
 
@@ -57,6 +59,7 @@ def summary(result: FitResult) -> dict:
     except NotPositiveError as exc:  # pragma: no cover - to_factor does not check positivity today
         out["cilm"] = None
         out["cilm_skipped"] = str(exc)
+    out["identifiability"] = result.identifiability().to_dict()
     alignment = _alignment(result)
     if alignment is not None:
         out["alignment"] = alignment

@@ -20,7 +20,7 @@ from ..errors import InvalidArgumentError, NotPositiveError
 from ..model import SpectralModel
 from .energy import Objective, eigenvalue_weights
 from .optimize import make_optimizer
-from .options import FitOptions, Stage, StartResult
+from .options import FitOptions, Stage, StartResult, fits_area
 from .parametrization import Parametrization
 from ..targets import Target
 
@@ -106,6 +106,9 @@ class FitProblem:
     model : SpectralModel
     target : Target
     options : FitOptions
+    init : (nparams,) array, optional
+        Starting point of start 0 (the other starts stay random); with ``options.schedule`` None the fit is then one
+        stage at full resolution.
 
     Raises
     ------
@@ -116,7 +119,7 @@ class FitProblem:
         If a stage's degree exceeds the model's.
     """
 
-    def __init__(self, model: SpectralModel, target: Target, options: FitOptions):
+    def __init__(self, model: SpectralModel, target: Target, options: FitOptions, *, init=None):
         if not isinstance(model, SpectralModel):
             raise InvalidArgumentError(f"model must be a SpectralModel, got {type(model).__name__}")
         if not isinstance(target, Target):
@@ -124,7 +127,18 @@ class FitProblem:
         if not isinstance(options, FitOptions):
             raise InvalidArgumentError(f"options must be FitOptions, got {type(options).__name__}")
         self.model, self.target, self.options = model, target, options
-        schedule = default_schedule(model, target.numeig) if options.schedule is None else options.schedule
+        if init is not None:
+            init = np.array(init, dtype=float)
+            if init.shape != (model.nparams,) or not np.all(np.isfinite(init)):
+                raise InvalidArgumentError(f"a starting point must be a finite array of {model.nparams} parameters "
+                                           f"({model.describe()}), got shape {init.shape}")
+        self.init = init
+        if options.schedule is not None:
+            schedule = options.schedule
+        else:
+            # a given start already holds the coarse shape: one stage at full resolution, not a ramp that would
+            # truncate it to the first level
+            schedule = (Stage(),) if init is not None else default_schedule(model, target.numeig)
         self.stages = schedule or (Stage(),)
         for st in self.stages:
             if st.numeig is not None and st.numeig > target.numeig:
@@ -132,15 +146,18 @@ class FitProblem:
             model.restrict(st.lmax_factor)  # raises for a level the model does not have
         if options.area == "fixed" and target.area is None and target.numeig < 4:
             raise InvalidArgumentError("a fixed area needs a known area or a spectrum to estimate it from")
-        self.fit_area = options.area == "fit" or (options.area == "auto" and target.area is None)
+        self.fit_area = fits_area(options, target)
         self.area = target.area_estimate()
 
     def level(self, s: int) -> int | None:
         """The level (harmonic models: the factor's degree) of stage s, None for the model's own."""
         return self.stages[s].lmax_factor
 
-    def initial(self, rng: np.random.Generator) -> np.ndarray:
-        """A random symmetry-broken start (nparams,) of the model at the first stage's level, with the area."""
+    def initial(self, rng: np.random.Generator, index: int = 0) -> np.ndarray:
+        """Start ``index``: the given starting point for start 0 if there is one, otherwise a random
+        symmetry-broken start (nparams,) of the model at the first stage's level, with the area."""
+        if index == 0 and self.init is not None:
+            return self.init.copy()
         return self.model.random_start(rng, self.options.start_amplitude, self.area, self.level(0))
 
     def enter_stage(self, s: int, params: np.ndarray, rng: np.random.Generator) -> np.ndarray:

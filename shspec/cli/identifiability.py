@@ -1,0 +1,100 @@
+"""``shspec identifiability``: before any fit, how many eigenvalues determine a ρ of degree La, and how well."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from ..checks import check_float
+from ..errors import InvalidArgumentError
+from ..galerkin import HarmonicModel
+from ..inverse.identifiability import identifiability
+from ..sphere.random import random_centred_coefficients
+from ..targets import blob_factor, parse_target
+
+
+def register(subparsers) -> None:
+    """Add ``identifiability`` to the shspec command line."""
+    p = subparsers.add_parser(
+        "identifiability", help="how well K eigenvalues determine rho of degree La (before any fit)",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        description="For a reference rho (the built-in blob, a random smooth rho, or the harmonic truth of a mesh "
+        "target), the singular values of the relative Jacobian d(lambda_i)/lambda_i over the free coefficients "
+        "(gauge a_1m = 0; the three rotations counted out) for several K: rank, condition number and noise gain "
+        "(relative error of rho per unit relative noise on the eigenvalues). Recommends the smallest K listed "
+        "whose noise gain times --noise is below --accuracy.")
+    p.add_argument("--lmax-factor", type=int, required=True, help="degree La of rho")
+    p.add_argument("--numeig", default=None,
+                   help="K values, comma-separated (default: (La+2)^2 and 1.5, 2, 3, 4 times (La+1)^2)")
+    p.add_argument("--lmax", type=int, default=None, help="basis band limit Lb (default: enough for the largest K)")
+    p.add_argument("--target", default="blob",
+                   help="reference rho: blob | random:SEED | star:l,m,p | mesh:PATH (the harmonic truth)")
+    p.add_argument("--noise", type=float, default=1e-8, help="relative noise sigma on the eigenvalues")
+    p.add_argument("--accuracy", type=float, default=1e-6, help="wanted relative L2 accuracy of rho")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    p.set_defaults(func=_identifiability)
+
+
+def _ks(text, la: int) -> list[int]:
+    if text is None:
+        n = (la + 1) ** 2
+        return sorted({(la + 2) ** 2, int(1.5 * n), 2 * n, 3 * n, 4 * n})
+    try:
+        ks = sorted({int(v) for v in text.split(",")})
+    except ValueError:
+        raise InvalidArgumentError(f"--numeig takes comma-separated integers, got {text!r}") from None
+    if ks[0] < 2:
+        raise InvalidArgumentError(f"every K must be >= 2, got {ks[0]}")
+    return ks
+
+
+def _reference(text: str, la: int, lb: int) -> np.ndarray:
+    if text.startswith("random:"):
+        try:
+            seed = int(text.split(":", 1)[1])
+        except ValueError:
+            raise InvalidArgumentError(f"a random reference is random:SEED, got {text!r}") from None
+        return random_centred_coefficients(seed, la, 0.2)
+    if text == "blob":
+        return blob_factor(max(la, 6)).truncated(la).coefficients
+    target = parse_target(text, lmax=lb, numeig=2, lmax_factor=la)
+    if target.truth is None:
+        raise InvalidArgumentError(f"{text} has no known rho; use blob, random:SEED, star:... or mesh:...")
+    return target.truth.truncated(la).coefficients if target.truth.lmax >= la else \
+        np.concatenate([target.truth.coefficients, np.zeros((la + 1) ** 2 - target.truth.coefficients.size)])
+
+
+def _identifiability(args) -> int:
+    la = args.lmax_factor
+    ks = _ks(args.numeig, la)
+    noise = check_float(args.noise, "--noise", positive=True)
+    accuracy = check_float(args.accuracy, "--accuracy", positive=True)
+    # (Lb+1)² basis functions for the largest K, with a margin of 1.5 in count so the top eigenvalues converged
+    lb = args.lmax if args.lmax is not None else max(int(np.ceil(np.sqrt(1.5 * ks[-1]))), la)
+    model = HarmonicModel(lb, la)
+    a = _reference(args.target, la, lb)
+    rows = []
+    for k in ks:
+        ident = identifiability(model, a, k)
+        rows.append({"numeig": k, **{key: v for key, v in ident.to_dict().items() if key != "singular_values"}})
+    good = [r["numeig"] for r in rows if not r["underdetermined"] and r["noise_gain"] * noise <= accuracy]
+    recommended = good[0] if good else None
+    if args.json:
+        print(json.dumps({"lmax": lb, "lmax_factor": la, "target": args.target, "noise": noise,
+                          "accuracy": accuracy, "rows": rows, "recommended_numeig": recommended}))
+        return 0
+    print(f"rho: {args.target}, La = {la} ({rows[0]['free']} free coefficients, {rows[0]['symmetries']} rotations "
+          f"counted out), basis Lb = {lb}")
+    print(f"{'K':>6} {'rank':>6} {'condition':>11} {'noise gain':>11}  determined")
+    for r in rows:
+        cond = "inf" if r["condition"] is None else f"{r['condition']:.3g}"
+        print(f"{r['numeig']:>6} {r['rank']:>6} {cond:>11} {r['noise_gain']:>11.3g}  "
+              f"{'no' if r['underdetermined'] else 'yes'}")
+    if recommended is None:
+        print(f"no K listed reaches a relative accuracy {accuracy:g} with noise {noise:g}; try larger K")
+    else:
+        print(f"recommended: K = {recommended} (noise gain x noise = "
+              f"{rows[ks.index(recommended)]['noise_gain'] * noise:.2g} <= {accuracy:g})")
+    return 0
