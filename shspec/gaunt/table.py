@@ -322,6 +322,9 @@ class GauntTable:
             )
         self._plan = None
         self._rows = _balanced_rows(self.offsets, self.lmax)
+        # restrictions are kept: a solver asking a larger cached table for the same smaller limits again (every
+        # call of shspec.spectrum, every stage of a fit) then reuses the values and the plan built for them
+        self._restricted: dict[tuple[int, int], GauntTable] = {}
 
     def __repr__(self) -> str:
         return (f"GauntTable(lmax={self.lmax}, lmax_factor={self.lmax_factor}, values={self.values.size}, "
@@ -356,10 +359,15 @@ class GauntTable:
                 f"a ({self.lmax},{self.lmax_factor}) table cannot serve ({lmax},{lmax_factor})")
         if (lmax, lmax_factor) == (self.lmax, self.lmax_factor):
             return self
-        off = _block_offsets(lmax, lmax_factor)
-        out = np.empty(int(off[lmax, lmax + 1]))
-        _restrict(_balanced_rows(off, lmax), lmax, lmax_factor, off, self.lmax_factor, self.offsets, self.values, out)
-        return GauntTable(lmax, lmax_factor, out, metadata={"restricted_from": [self.lmax, self.lmax_factor]})
+        if (lmax, lmax_factor) not in self._restricted:
+            off = _block_offsets(lmax, lmax_factor)
+            out = np.empty(int(off[lmax, lmax + 1]))
+            _restrict(_balanced_rows(off, lmax), lmax, lmax_factor, off, self.lmax_factor, self.offsets, self.values,
+                      out)
+            out.setflags(write=self.values.flags.writeable)
+            self._restricted[(lmax, lmax_factor)] = GauntTable(
+                lmax, lmax_factor, out, metadata={"restricted_from": [self.lmax, self.lmax_factor]})
+        return self._restricted[(lmax, lmax_factor)]
 
     def mass_matrix(self, coef: np.ndarray, *, symmetrize: bool = True) -> np.ndarray:
         """M_ij = Σ_k a_k G_ijk for factor coefficients a.

@@ -40,7 +40,12 @@ from ..sphere.evaluate import sample_harmonic
 from ..report import validation_markdown
 from ..sphere.rotate import power_spectrum
 
-__all__ = ["ValidationOptions", "ValidationResult", "validate_target", "write_report"]
+__all__ = ["ValidationOptions", "ValidationResult", "validate_target", "write_report", "SPECTRUM_LABELS"]
+
+#: What each spectrum of a validation is, as figure legends say it.
+SPECTRUM_LABELS = {"target_pl": "target mesh (cotan)", "cmcf_pl": "cMCF sphere with its factors (cotan)",
+                   "cmcf_harmonic": "cMCF factors in harmonics (Galerkin)", "embedded_pl": "re-embedded cMCF factors",
+                   "fit_harmonic": "fitted rho (Galerkin)", "fit_embedded_pl": "re-embedded fitted factors"}
 
 
 @dataclass(frozen=True)
@@ -316,11 +321,13 @@ def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int =
     plt.close(fig)
 
     lam0 = result.spectra["target_pl"]
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
-    for key, lam in result.spectra.items():
-        a1.plot(lam, ".-", label=key, ms=4)
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.2))
+    for n, (key, lam) in enumerate(result.spectra.items()):
+        # one colour and one readable name per source, the same in both panels
+        style = dict(label=SPECTRUM_LABELS.get(key, key), ms=4, color=f"C{n}")
+        a1.plot(lam, ".-", **style)
         if key != "target_pl":
-            a2.semilogy(np.arange(1, lam.size), np.abs(lam[1:] / lam0[1:] - 1), ".-", label=key, ms=4)
+            a2.semilogy(np.arange(1, lam.size), np.maximum(np.abs(lam[1:] / lam0[1:] - 1), 1e-300), ".-", **style)
     a1.set_xlabel("index i")
     a1.set_ylabel("λ_i (1/area)")
     a1.legend(fontsize=8)
