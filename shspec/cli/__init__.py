@@ -10,9 +10,11 @@ import argparse
 import importlib
 import sys
 
+from .. import __version__
 from ..errors import ShspecError
 
-_COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment", "shspec.cli.fit", "shspec.cli.embed"]
+_COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment", "shspec.cli.fit", "shspec.cli.embed",
+                    "shspec.cli.precompute"]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -21,6 +23,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Laplace-Beltrami spectra of genus-0 surfaces g = rho*g0, in the spherical-harmonic basis "
         "and on triangle meshes. Run 'shspec COMMAND --help' for each command.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in _COMMAND_MODULES:
         try:
@@ -44,3 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     except ShspecError as exc:
         print(f"shspec {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        # files are written atomically, so an interrupt leaves no half-written output behind
+        print(f"shspec {args.command}: interrupted", file=sys.stderr)
+        return 130

@@ -27,7 +27,7 @@ def register(sub) -> None:
     p.add_argument("--numeig", type=int, default=36, help="number of eigenvalues K (lambda_0 = 0 included)")
     p.add_argument("--out", help="save the spectrum with its parameters to this .json or .h5 file")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
-    p.add_argument("--cache-dir", help="Gaunt table cache (default $SHSPEC_CACHE or the project's cache/)")
+    p.add_argument("--cache-dir", help="Gaunt table cache (default: $SHSPEC_CACHE, else ~/.cache/shspec)")
     p.set_defaults(func=run_forward)
 
     c = sub.add_parser(
