@@ -21,6 +21,9 @@ __all__ = [
     "MeshError",
     "ConvergenceError",
     "CheckpointError",
+    "ResourceLimitError",
+    "ShspecWarning",
+    "TruncationWarning",
 ]
 
 
@@ -70,3 +73,15 @@ class ConvergenceError(ShspecError, RuntimeError):
 
 class CheckpointError(ShspecError, OSError):
     """A checkpoint or result file cannot be written, read or resumed from."""
+
+
+class ResourceLimitError(BandLimitError):
+    """A computation would need more memory or disk than the machine has (the message gives both and what fits)."""
+
+
+class ShspecWarning(UserWarning):
+    """Base class of the warnings shspec emits on purpose (filter them with ``warnings.simplefilter``)."""
+
+
+class TruncationWarning(ShspecWarning):
+    """A spectrum whose estimated truncation error (band limit of ρ or of the basis) exceeds the tolerance."""
