@@ -41,6 +41,9 @@ limits serves every smaller request. Sizes: (30,15) 3 MiB, (60,30) 88 MiB, (100,
 """
 
 
+_Formatter = argparse.RawDescriptionHelpFormatter  # the epilog is laid out by hand; defaults are in each help
+
+
 def _band_limit(text: str) -> int:
     try:
         value = int(text)
@@ -54,12 +57,12 @@ def _band_limit(text: str) -> int:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The arguments of the precompute command, added to ``p``."""
     p.add_argument("action", nargs="?", default="build", choices=["build", "rebuild", "list", "verify", "clean"],
-                   help="what to do")
+                   help="what to do (default build)")
     p.add_argument("--lmax", type=_band_limit, help="basis band limit Lb (the basis has (Lb+1)^2 functions)")
     p.add_argument("--lmax-factor", type=_band_limit, help="band limit La of rho, at most 2*Lb")
     p.add_argument("--cache-dir", help="cache directory (default: $SHSPEC_CACHE, else ~/.cache/shspec)")
     p.add_argument("--force", action="store_true", help="rebuild even if a valid table is cached")
-    p.add_argument("--samples", type=_band_limit, default=2000, help="entries to check with 'verify'")
+    p.add_argument("--samples", type=_band_limit, default=2000, help="entries to check with 'verify' (default 2000)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -69,10 +72,6 @@ def build_parser(prog: str = "python -m precompute") -> argparse.ArgumentParser:
                                 formatter_class=_Formatter)
     add_arguments(p)
     return p
-
-
-class _Formatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
-    """Keeps the epilog's layout and shows every default."""
 
 
 def register(sub) -> None:
