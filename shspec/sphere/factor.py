@@ -13,6 +13,7 @@ import pyshtools
 import scipy.optimize
 
 from ..errors import InvalidArgumentError, NotPositiveError
+from ..plotstyle import style_hammer
 from .grid import evaluate_on_grid, expand_grid, glq_grid
 from .harmonics import (as_coefficients, check_degree, lmax_of_size, vector_to_cilm, vector_to_shcoeffs)
 
@@ -360,9 +361,9 @@ class ConformalFactor:
             fig = plt.figure(figsize=(8, 4.5))
             ax = fig.add_subplot(111, projection="hammer")
         mesh = ax.pcolormesh(lon[order], lat, values[:, order], shading="nearest", cmap=cmap)
-        ax.figure.colorbar(mesh, ax=ax, orientation="horizontal", pad=0.05, shrink=0.6, label="rho")
-        ax.grid(True, alpha=0.3)
-        ax.set_title(title if title is not None else self.name)
+        style_hammer(ax)
+        ax.figure.colorbar(mesh, ax=ax, orientation="horizontal", pad=0.06, shrink=0.6, label="rho")
+        ax.set_title(title if title is not None else self.name, pad=10)
         return ax
 
     def __repr__(self) -> str:
