@@ -47,6 +47,10 @@ def main(argv: list[str] | None = None) -> int:
     except ShspecError as exc:
         print(f"shspec {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except BrokenPipeError:
+        # the reader went away (``shspec forward | head``): nothing left to say, and nobody to say it to
+        sys.stderr.close()
+        return 0
     except KeyboardInterrupt:
         # files are written atomically, so an interrupt leaves no half-written output behind
         print(f"shspec {args.command}: interrupted", file=sys.stderr)
