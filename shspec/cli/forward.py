@@ -79,7 +79,7 @@ def _check_limits(args) -> None:
         if args.lmax_factor > 2 * args.lmax:
             raise BandLimitError(f"--lmax-factor = {args.lmax_factor} > 2*--lmax = {2 * args.lmax}: degrees of rho "
                                  "above 2*Lb do not couple two basis functions, so they would be ignored")
-    args.numeig = check_degree(args.numeig, "--numeig", minimum=1, maximum=(args.lmax + 1) ** 2)
+    args.numeig = check_degree(args.numeig, "--numeig", minimum=1)  # the library says how far to raise --lmax
 
 
 @contextlib.contextmanager
