@@ -26,15 +26,11 @@ from ..errors import BandLimitError, InvalidArgumentError, NotPositiveError, Shs
 from ..sphere.factor import ConformalFactor, as_factor
 from ..sphere.harmonics import check_degree, degrees, ncoeffs
 from ..model import SpectralModel, Spectrum
-from ..gaunt.table import GauntTable
+from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
 from ..resources import check_need, forward_need
 from .truncation import DEFAULT_TRUNCATION_TOL, TruncationEstimate, factor_truncation, tail_bound
 
 __all__ = ["HarmonicModel", "SpectrumResult", "spectrum", "MAX_BASIS_DEGREE"]
-
-#: Largest basis band limit Lb of a forward solve (the Gaunt table and the dense N×N matrices, N = (Lb+1)², must
-#: fit in memory: Lb = 400 already needs ~200 GiB).  One constant for the library and the command line.
-MAX_BASIS_DEGREE = 400
 
 
 @nb.njit(cache=True, parallel=True)

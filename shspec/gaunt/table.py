@@ -24,13 +24,18 @@ from ..errors import BandLimitError, InvalidArgumentError
 from .real_gaunt import order_factor
 from ..sphere.harmonics import check_degree, ncoeffs
 
-__all__ = ["GauntTable", "table_size", "check_limits", "plan_bytes", "PLAN_ENTRY_BYTES"]
+__all__ = ["GauntTable", "table_size", "check_limits", "plan_bytes", "PLAN_ENTRY_BYTES", "MAX_BASIS_DEGREE"]
+
+
+#: Largest basis band limit Lb of a table and of a forward solve (the table and the dense N×N matrices,
+#: N = (Lb+1)², must fit in memory: Lb = 400 already needs ~200 GiB).  One constant for the library and the CLI.
+MAX_BASIS_DEGREE = 400
 
 
 def check_limits(lmax, lmax_factor) -> tuple[int, int]:
     """Validate a pair of band limits (Lb for the basis, La for ρ); La may not exceed 2·Lb (G would vanish)."""
-    lmax = check_degree(lmax, "lmax (basis band limit Lb)", maximum=400)
-    lmax_factor = check_degree(lmax_factor, "lmax_factor (band limit La of rho)", maximum=400)
+    lmax = check_degree(lmax, "lmax (basis band limit Lb)", maximum=MAX_BASIS_DEGREE)
+    lmax_factor = check_degree(lmax_factor, "lmax_factor (band limit La of rho)", maximum=MAX_BASIS_DEGREE)
     if lmax_factor > 2 * lmax:
         raise BandLimitError(
             f"lmax_factor = {lmax_factor} > 2*lmax = {2 * lmax}: degrees above 2*Lb cannot couple two basis "
