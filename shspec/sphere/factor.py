@@ -56,7 +56,8 @@ def derivative_bounds(coefficients: np.ndarray) -> tuple[float, float]:
         G = Σ_l ‖a_l‖ (l(l+1) S_l / 2)^½,
         H = Σ_l ‖a_l‖ [½ l(l+1) S_l^½ + ½ (l(l+1)(l(l+1)/2 − 1) S_l)^½].
 
-    Both are attained for l = 1 (G = H = (3/4π)^½ ‖a_1‖); in general they are sharp in each degree separately.
+    G is attained in every degree; H splits the Hessian's two parts, each bounded sharply, so it is within a
+    factor 2 of the best bound; both are attained for l = 1 (G = H = (3/4π)^½ ‖a_1‖).
 
     Returns
     -------
