@@ -22,6 +22,9 @@ __all__ = [
     "ConvergenceError",
     "CheckpointError",
     "OutputError",
+    "ResourceLimitError",
+    "ShspecWarning",
+    "TruncationWarning",
 ]
 
 
@@ -75,3 +78,13 @@ class CheckpointError(ShspecError, OSError):
 
 class OutputError(ShspecError, OSError):
     """An output directory or file cannot be created or written (a file in the way, no permission, disk full)."""
+class ResourceLimitError(BandLimitError):
+    """A computation would need more memory or disk than the machine has (the message gives both and what fits)."""
+
+
+class ShspecWarning(UserWarning):
+    """Base class of the warnings shspec emits on purpose (filter them with ``warnings.simplefilter``)."""
+
+
+class TruncationWarning(ShspecWarning):
+    """A spectrum whose estimated truncation error (band limit of ρ or of the basis) exceeds the tolerance."""

@@ -24,7 +24,9 @@ h1{border-bottom:2px solid #444}h2{margin-top:2.2em;border-bottom:1px solid #bbb
 table{border-collapse:collapse;font-size:0.85em;margin:0.8em 0}td,th{border:1px solid #ccc;padding:2px 6px;
 text-align:right}th{background:#f0f0f0}img{max-width:100%;border:1px solid #ddd;margin:0.5em 0}
 .finding{background:#f6f8fa;padding:0.8em 1em;border-left:4px solid #4a7}pre{background:#f6f8fa;padding:0.6em;
-font-size:0.8em;overflow-x:auto}.meta{color:#666;font-size:0.85em}"""
+font-size:0.8em;overflow-x:auto;white-space:pre}.meta{color:#666;font-size:0.85em}
+.wide{max-width:100%;overflow-x:auto;margin:0.8em 0}.wide table{margin:0}th{position:sticky;top:0}
+td,th{white-space:nowrap}"""
 
 
 def _finding(report_md: str) -> str:
@@ -48,7 +50,8 @@ def _table(path: Path) -> str:
                 pass
             cells.append(f"<td>{html.escape(c)}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+    # a table wider than the page scrolls inside its own box instead of running past the page's edge
+    return f'<div class="wide"><table><thead><tr>{head}</tr></thead><tbody>{"".join(body)}</tbody></table></div>'
 
 
 def build_report(folders, out) -> Path:

@@ -1,4 +1,4 @@
-"""Shared fixtures.  Every test run gets its own table cache, so tests never touch the project's cache/ folder."""
+"""Shared fixtures.  Every test run gets its own table cache, so tests never touch the user cache (~/.cache/shspec)."""
 
 from __future__ import annotations
 

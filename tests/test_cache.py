@@ -128,3 +128,81 @@ def test_save_refuses_a_file_as_directory(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         save_table(build_table(3, 2), tmp_path)
+
+
+def _killed_during_save(directory):
+    # SIGKILL at the moment the complete temporary file would be renamed: what kill -9 during a save leaves
+    import signal
+
+    os.replace = lambda *a: os.kill(os.getpid(), signal.SIGKILL)
+    get_table(6, 3, cache_dir=directory)
+
+
+def test_killed_writer_leaves_a_temporary_file_that_is_listed_and_removed(tmp_path):
+    from shspec.gaunt.cache import list_temporary_files
+
+    ctx = multiprocessing.get_context("spawn")
+    proc = ctx.Process(target=_killed_during_save, args=(str(tmp_path),))
+    proc.start()
+    proc.join(timeout=300)
+    assert proc.exitcode == -9
+    orphans = list(tmp_path.glob("gaunt_Lb6_La3.h5.*.tmp"))
+    assert len(orphans) == 1
+    listed = list_temporary_files(tmp_path)
+    assert [(t.path, t.stale) for t in listed] == [(orphans[0], True)]
+    get_table(6, 3, cache_dir=tmp_path)
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_force_rebuild_keeps_the_old_table_until_the_new_one_is_complete(tmp_path, monkeypatch):
+    import shspec.gaunt.cache as cache
+
+    get_table(6, 3, cache_dir=tmp_path)
+    before = table_path(6, 3, tmp_path).read_bytes()
+
+    def interrupted(*args, **kwargs):
+        # the old table must still be there, and valid, while the new one is being built
+        assert load_table(6, 3, tmp_path).values.size > 0
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cache, "build_table", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        get_table(6, 3, cache_dir=tmp_path, force=True)
+    assert table_path(6, 3, tmp_path).read_bytes() == before
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_tables_are_readable_by_others_under_the_usual_umask(tmp_path):
+    import stat
+
+    old = os.umask(0o022)
+    try:
+        get_table(4, 2, cache_dir=tmp_path)
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(table_path(4, 2, tmp_path).stat().st_mode) == 0o644
+
+
+def test_list_notes_a_corrupt_table_and_refuses_a_file(tmp_path):
+    get_table(6, 3, cache_dir=tmp_path)
+    path = table_path(6, 3, tmp_path)
+    with h5py.File(path, "r+") as f:
+        f["values"][5] += 1e-12
+    assert list_tables(tmp_path)[0].problem is None  # the attributes alone look fine
+    assert "checksum" in list_tables(tmp_path, verify=True)[0].problem
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    with pytest.raises(CacheLocationError, match="is a file"):
+        list_tables(afile)
+
+
+def test_one_cache_rule_whatever_the_checkout(tmp_path, monkeypatch):
+    from shspec.gaunt.cache import cache_dir, cache_dir_source
+
+    monkeypatch.delenv("SHSPEC_CACHE", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert cache_dir() == tmp_path / "shspec"
+    assert cache_dir_source() == (tmp_path / "shspec", "user cache")
+    monkeypatch.setenv("SHSPEC_CACHE", str(tmp_path / "x"))
+    assert cache_dir_source() == (tmp_path / "x", "$SHSPEC_CACHE")
+    assert cache_dir_source(tmp_path / "y") == (tmp_path / "y", "--cache-dir")

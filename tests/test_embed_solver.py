@@ -10,7 +10,7 @@ from shspec.errors import InvalidArgumentError, MeshError, NotPositiveError
 from shspec.embed import (EmbedOptions, EmbedSystem, continuation_schedule, edge_length_error, embed, folded_faces,
                           mesh_edges, nested_dissection, self_intersections, smooth_factors, surface_distance,
                           target_edge_lengths, vertex_factors)
-from shspec.embed.embed import _iterate
+from shspec.embed.solver import lm_iterate
 from shspec.sphere.factor import ConformalFactor
 from shspec.sphere.evaluate import sample_harmonic
 from shspec.mesh.cmcf import cmcf
@@ -51,7 +51,31 @@ def test_area_and_scale_follow_the_factors():
     # Constant c = 4 doubles every length: the sphere of radius 2 (chords of the unit icosphere, doubled).
     r = np.linalg.norm(res.mesh.vertices, axis=1)
     assert np.allclose(r, 2.0, rtol=1e-6)
-    assert res.edge_error_rms < 1e-6 and res.steps == 1
+    assert res.edge_error_rms < 1e-6 and res.success
+
+
+def test_exact_factors_are_left_exact():
+    # c ≡ 1 is already the unit sphere: success, and not a vertex moves (the old solver inflated it with the
+    # pressure prior, then never met its relative tolerance on the way back: success false, vertices moved)
+    sphere = icosphere(2)
+    res = embed(sphere, np.ones(sphere.nvertices), EmbedOptions(check_intersections=False))
+    shift = sphere.vertices.mean(axis=0)
+    assert res.success and res.converged and res.steps == 0
+    assert np.abs(res.mesh.vertices - (sphere.vertices - shift)).max() < 1e-14
+
+
+def test_huge_and_tiny_factor_scales_give_the_same_shape(rng):
+    # a similarity: factors × s scale every length by √s, exactly, and must neither overflow nor divide by zero
+    sphere = icosphere(2)
+    c = sample_harmonic(random_factor_coefficients(rng, 3, amplitude=0.3), sphere.vertices)
+    opt = EmbedOptions(check_intersections=False)
+    ref = embed(sphere, c, opt)
+    for s in (1e300, 1e-300):
+        res = embed(sphere, c * s, opt)
+        np.testing.assert_allclose(res.mesh.vertices / np.sqrt(s), ref.mesh.vertices, rtol=0, atol=1e-9)
+        assert res.success == ref.success and res.factorizations == ref.factorizations > 0
+    const = embed(sphere, np.full(sphere.nvertices, 1e300), opt)
+    assert const.success and np.allclose(np.linalg.norm(const.mesh.vertices, axis=1), 1e150, rtol=1e-12)
 
 
 def test_a_moebius_boost_embeds_as_the_round_sphere():
@@ -91,7 +115,7 @@ def test_trust_region_accepts_only_decreasing_steps(rng):
     system.precondition(lengths)
     history, stats = [], {"nnz": 0, "cg": 0}
     opt = EmbedOptions(damping=10.0, min_damping=1e-3, tol=1e-6)
-    x, _ = _iterate(system, sphere.vertices.copy(), lengths, 0.0, 30, opt, history, stats)
+    x, _ = lm_iterate(system, sphere.vertices.copy(), lengths, 0.0, 30, opt, history, stats)
     assert np.all(np.diff(history) < 0)
     # Good steps shrink μ from its start towards the floor, never below it.
     assert 1e-3 <= system.damping < 1.0
@@ -100,7 +124,7 @@ def test_trust_region_accepts_only_decreasing_steps(rng):
     system.precondition(lengths)
     history, stats = [], {"nnz": 0, "cg": 0}
     x0 = sphere.vertices + 0.2 * rng.standard_normal(sphere.vertices.shape)
-    _iterate(system, x0, lengths, 0.0, 30, EmbedOptions(damping=1e-9, min_damping=1e-9), history, stats)
+    lm_iterate(system, x0, lengths, 0.0, 30, EmbedOptions(damping=1e-9, min_damping=1e-9), history, stats)
     assert stats.get("rejected", 0) > 0 and np.all(np.diff(history) < 0)
     assert system.energy(x0, lengths, 0.0) > history[0]
 

@@ -122,3 +122,12 @@ def test_config_override_and_errors(tmp_path):
         run_experiment("nope", tmp_path / "y")
     with pytest.raises(InvalidArgumentError, match="not an experiment folder"):
         build_report([tmp_path / "x"], tmp_path / "r.html")
+
+
+def test_report_tables_scroll_instead_of_overflowing(runs, tmp_path):
+    import re
+
+    page = build_report([runs], tmp_path / "r.html").read_text()
+    tables = page.count("<table>")
+    assert tables > 0 and page.count('<div class="wide"><table>') == tables
+    assert re.search(r"\.wide\{[^}]*overflow-x:auto", page)

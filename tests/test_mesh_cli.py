@@ -43,6 +43,10 @@ def test_cmcf_writes_outputs(blob_file, tmp_path, capsys):
     assert main(["cmcf", str(blob_file), "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["flips"] == 0 and summary["success"] is True
+    from shspec.mesh.cmcf import CMCFOptions
+
+    # the inputs that made it, not only the input file
+    assert (summary["tol"], summary["max_iter"], summary["center"]) == (CMCFOptions.tol, CMCFOptions.max_iter, True)
     assert {"roundness", "iterations", "time", "flips"} <= summary.keys()
     sphere = load_mesh(out / "sphere.obj")
     np.testing.assert_allclose(np.linalg.norm(sphere.vertices, axis=1), 1.0, atol=1e-12)

@@ -134,3 +134,40 @@ def test_argument_errors():
         EigenOptions(tol=0)
     with pytest.raises(ConvergenceError, match="max_dim"):
         eigenpairs(*_copies(blob(3), 2), 60, EigenOptions(max_dim=40))
+
+
+def _with_sliver(eps):
+    """icosphere(2) with a vertex inserted into face 0 at distance ~eps from its first edge (a sliver face)."""
+    from shspec.mesh.triangle_mesh import TriangleMesh
+
+    m = icosphere(2)
+    a, b, c = m.faces[0]
+    v = m.vertices
+    p = (v[a] + v[b]) / 2 * (1 - eps) + v[c] * eps
+    q = len(v)
+    faces = np.vstack([m.faces[1:], [[a, b, q], [b, c, q], [c, a, q]]])
+    return TriangleMesh(np.vstack([v, p]), faces)
+
+
+@pytest.mark.parametrize("rtol", [1e-8, 1e-11])
+def test_a_sliver_face_does_not_merge_the_wanted_groups(rtol):
+    from shspec.mesh.validate import validate_mesh
+
+    mesh = validate_mesh(_with_sliver(1e-6))  # area ~1e-6 of the mean: a valid mesh
+    ref = sla.eigh(cotan_stiffness(mesh).toarray(), mass_matrix(mesh).toarray(), eigvals_only=True)
+    assert ref[-1] > 1e5 * ref[10]  # the sliver's eigenvalue dwarfs the wanted ones
+    k = 10
+    expected = k + int(np.sum(np.abs(ref[k:] - ref[k - 1]) <= rtol * abs(ref[k])))
+    spec = mesh_spectrum(mesh, k, options=EigenOptions(multiplet_rtol=rtol))
+    assert spec.eigenvalues.size == expected < 13
+    np.testing.assert_allclose(spec.eigenvalues, ref[:expected], rtol=1e-9, atol=1e-9)  # λ₀ ~ 1e-11 here
+
+
+def test_zero_area_face_raises_instead_of_negative_eigenvalues():
+    from shspec.errors import MeshError
+
+    mesh = _with_sliver(0.0)
+    with pytest.raises(MeshError, match="zero area"):
+        mesh_spectrum(mesh, 10)
+    with pytest.raises(InvalidArgumentError, match="negative eigenvalue"):
+        eigenpairs(cotan_stiffness(mesh), mass_matrix(mesh), 10)

@@ -143,3 +143,20 @@ def test_shape_errors():
         TriangleMesh(np.zeros((4, 2)), [[0, 1, 2]])
     with pytest.raises(MeshError, match="outside"):
         TriangleMesh(np.zeros((3, 3)), [[0, 1, 3]])
+
+
+def test_vertex_soup_obj_gets_a_hint_and_welds(tmp_path):
+    from shspec.errors import MeshError
+    from shspec.mesh.io import load_mesh
+    from shspec.mesh.shapes import icosphere
+
+    mesh = icosphere(1)
+    soup = mesh.vertices[mesh.faces.ravel()]
+    lines = [f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in soup]
+    lines += [f"f {3 * i + 1} {3 * i + 2} {3 * i + 3}" for i in range(len(mesh.faces))]
+    path = tmp_path / "soup.obj"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(MeshError, match=r"(?s)boundary.*repeat the position.*--merge-vertices"):
+        load_mesh(path)
+    welded = load_mesh(path, merge_vertices=True)
+    assert welded.nvertices == mesh.nvertices and welded.faces.shape == mesh.faces.shape

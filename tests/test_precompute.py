@@ -60,3 +60,41 @@ def test_help_explains():
     assert out.returncode == 0
     for word in ("--lmax", "--lmax-factor", "--cache-dir", "--force", "verify", "SHSPEC_CACHE"):
         assert word in out.stdout
+
+
+def test_interrupted_rebuild_keeps_the_table_and_prints_one_line(tmp_path, monkeypatch, capsys):
+    import shspec.gaunt.cache as cache
+    from precompute.__main__ import main
+
+    assert main(["--lmax", "6", "--lmax-factor", "3", "--quiet", "--cache-dir", str(tmp_path)]) == 0
+    before = cache.table_path(6, 3, tmp_path).read_bytes()
+    capsys.readouterr()
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cache, "build_table", interrupted)
+    code = main(["--lmax", "6", "--lmax-factor", "3", "--force", "--quiet", "--cache-dir", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 130 and len(err.strip().splitlines()) == 1 and "interrupted" in err
+    assert cache.table_path(6, 3, tmp_path).read_bytes() == before
+
+
+def test_list_shows_rule_stale_temporary_and_refuses_a_file(tmp_path):
+    (tmp_path / "gaunt_Lb6_La3.h5.abcd1234.tmp").write_bytes(b"\0" * 100)
+    out = run("list", cache=tmp_path)
+    assert out.returncode == 0
+    assert "SHSPEC_CACHE" in out.stdout and "gaunt_Lb6_La3.h5.abcd1234.tmp" in out.stdout and "stale" in out.stdout
+    clean = run("clean", cache=tmp_path)
+    assert clean.returncode == 0 and not list(tmp_path.glob("*.tmp"))
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    out = run("list", "--cache-dir", str(afile))
+    assert out.returncode == 1 and "is a file" in out.stderr
+
+
+def test_shspec_precompute_is_the_same_command(tmp_path):
+    from shspec.cli import main
+
+    assert main(["precompute", "--lmax", "4", "--lmax-factor", "2", "--quiet", "--cache-dir", str(tmp_path)]) == 0
+    assert (tmp_path / "gaunt_Lb4_La2.h5").exists()

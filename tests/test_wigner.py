@@ -352,3 +352,14 @@ def test_truncated_forward_family_matches_double_double():
         worst = max(worst, np.max(np.abs(out[:n] - hi[:n])) / np.max(np.abs(hi)))
     assert worst <= 2e-14
     assert accepted > 1000 and refused > 100  # both paths exercised
+
+
+def test_negative_degrees_are_refused_like_real_gaunt():
+    from shspec.errors import InvalidArgumentError
+    from shspec.gaunt.real_gaunt import real_gaunt
+
+    for bad in [(-1, 1, 1, 0, 0, 0), (1, -1, 1, 0, 0, 0), (1, 1, -2, 0, 0, 0)]:
+        with pytest.raises(InvalidArgumentError, match="degrees are >= 0"):
+            wigner3j(*bad)
+    with pytest.raises(InvalidArgumentError):
+        real_gaunt(-1, 0, 1, 0, 1, 0)

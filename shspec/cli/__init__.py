@@ -10,10 +10,11 @@ import argparse
 import importlib
 import sys
 
+from .. import __version__
 from ..errors import ShspecError
 
 _COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment", "shspec.cli.fit", "shspec.cli.embed",
-                    "shspec.cli.identifiability"]
+                    "shspec.cli.identifiability", "shspec.cli.precompute"]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -22,15 +23,10 @@ def build_parser() -> argparse.ArgumentParser:
         description="Laplace-Beltrami spectra of genus-0 surfaces g = rho*g0, in the spherical-harmonic basis "
         "and on triangle meshes. Run 'shspec COMMAND --help' for each command.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in _COMMAND_MODULES:
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as exc:
-            if exc.name != name:
-                raise
-            continue
-        module.register(sub)
+        importlib.import_module(name).register(sub)
     return parser
 
 
@@ -45,3 +41,11 @@ def main(argv: list[str] | None = None) -> int:
     except ShspecError as exc:
         print(f"shspec {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except BrokenPipeError:
+        # the reader went away (``shspec forward | head``): nothing left to say, and nobody to say it to
+        sys.stderr.close()
+        return 0
+    except KeyboardInterrupt:
+        # files are written atomically, so an interrupt leaves no half-written output behind
+        print(f"shspec {args.command}: interrupted", file=sys.stderr)
+        return 130

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_path
 from ..embed.embed import EmbedOptions, embed
 from ..errors import InvalidArgumentError, OutputError
 from ..pipeline.validation import ValidationOptions, validate_target, write_report
@@ -24,8 +25,12 @@ def register(subparsers) -> None:
     p.add_argument("factors", type=Path, help="text file with one conformal factor per vertex")
     p.add_argument("--out", type=Path, required=True, help="output mesh file (.obj, .ply, .off, .stl)")
     p.add_argument("--steps", type=int, default=None, help="continuation steps (default: from the factor range)")
-    p.add_argument("--pressure", type=float, default=EmbedOptions.pressure, help="pressure prior (bumps outwards)")
-    p.add_argument("--smoothing", type=float, default=EmbedOptions.smoothing, help="bi-Laplacian factor filter")
+    p.add_argument("--pressure", type=float, default=EmbedOptions.pressure,
+                   help=f"pressure prior (bumps outwards) (default {EmbedOptions.pressure:g})")
+    p.add_argument("--smoothing", type=float, default=EmbedOptions.smoothing,
+                   help=f"bi-Laplacian factor filter (default {EmbedOptions.smoothing:g})")
+    p.add_argument("--summary", type=Path, default=None, metavar="FILE.json",
+                   help="also write the JSON summary, with the inputs and options, to this file")
     p.set_defaults(func=_embed)
 
     q = subparsers.add_parser("validate", help="end-to-end validation of a target mesh (spectra, factors, "
@@ -39,7 +44,9 @@ def register(subparsers) -> None:
     q.add_argument("--lmax", type=int, default=16, help="harmonic basis degree Lb (default 16)")
     q.add_argument("--lmax-factor", type=int, default=8, help="factor degree La (default 8)")
     q.add_argument("--no-fit", action="store_true", help="skip the inverse fit")
-    q.add_argument("--up", choices=("x", "y", "z"), default="z", help="vertical axis of the renderings")
+    q.add_argument("--up", choices=("x", "y", "z"), default="z", help="vertical axis of the renderings (default z)")
+    q.add_argument("--merge-vertices", action="store_true",
+                   help="weld vertices at identical positions (a vertex soup; always done for STL)")
     q.set_defaults(func=_validate)
 
 
@@ -51,11 +58,17 @@ def _embed(args) -> int:
         raise InvalidArgumentError(f"cannot read factors from {args.factors}: {exc}") from None
     res = embed(sphere, factors, EmbedOptions(steps=args.steps, pressure=args.pressure, smoothing=args.smoothing))
     save_mesh(res.mesh, args.out)
-    print(json.dumps({"out": str(args.out), "edge_length_error": res.edge_error_rms,
-                      "edge_length_error_max": res.edge_error_max, "folded_faces": res.folded_faces,
-                      "self_intersections": res.self_intersections, "steps": res.steps,
-                      "iterations": res.iterations, "success": res.success, "seconds": res.seconds,
-                      "cpu_seconds": res.cpu_seconds}))
+    summary = {"sphere": str(args.sphere), "factors": str(args.factors), "out": str(args.out),
+               "steps_option": args.steps, "pressure": args.pressure, "smoothing": args.smoothing,
+               "edge_length_error": res.edge_error_rms,
+               "edge_length_error_max": res.edge_error_max, "folded_faces": res.folded_faces,
+               "self_intersections": res.self_intersections, "steps": res.steps,
+               "iterations": res.iterations, "factorizations": res.factorizations, "success": res.success,
+               "seconds": res.seconds, "cpu_seconds": res.cpu_seconds}
+    if args.summary is not None:
+        with atomic_path(args.summary) as tmp:
+            tmp.write_text(json.dumps(summary, indent=1) + "\n")
+    print(json.dumps(summary))
     return 0 if res.success else 1
 
 
@@ -65,7 +78,7 @@ def _validate(args) -> int:
         raise InvalidArgumentError(f"--target must be mesh:PATH, got {args.target!r}")
     if args.out.exists() and not args.out.is_dir():
         raise OutputError(f"--out {args.out} is a file; give a directory")
-    mesh = load_mesh(Path(path))
+    mesh = load_mesh(Path(path), merge_vertices=args.merge_vertices or None)
     opt = ValidationOptions(numeig=args.numeig, lmax=args.lmax, lmax_factor=args.lmax_factor, fit=not args.no_fit)
     result = validate_target(mesh, opt, name=Path(path).stem, log=print)
     report = write_report(result, args.out, up=args.up)

@@ -27,7 +27,7 @@ def register(sub) -> None:
                        description="Collect the experiment folders (or folders containing them) into one HTML page "
                        "with figures inline, tables, parameters and versions.")
     r.add_argument("folders", nargs="+", help="experiment folders, or folders holding several")
-    r.add_argument("--out", default="report.html", help="the HTML file to write")
+    r.add_argument("--out", default="report.html", help="the HTML file to write (default report.html)")
     r.set_defaults(func=_report)
 
 

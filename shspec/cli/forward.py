@@ -3,13 +3,19 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import sys
+import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InvalidArgumentError
+from ..atomic import atomic_hdf5, atomic_path
+from ..errors import BandLimitError, InvalidArgumentError, TruncationWarning
+from ..sphere.harmonics import check_degree
 from ._rho import RHO_HELP, parse_rho
 
 
@@ -27,7 +33,7 @@ def register(sub) -> None:
     p.add_argument("--numeig", type=int, default=36, help="number of eigenvalues K (lambda_0 = 0 included)")
     p.add_argument("--out", help="save the spectrum with its parameters to this .json or .h5 file")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
-    p.add_argument("--cache-dir", help="Gaunt table cache (default $SHSPEC_CACHE or the project's cache/)")
+    p.add_argument("--cache-dir", help="Gaunt table cache (default: $SHSPEC_CACHE, else ~/.cache/shspec)")
     p.set_defaults(func=run_forward)
 
     c = sub.add_parser(
@@ -63,24 +69,70 @@ def _exact_sphere(k: int) -> np.ndarray:
     return (l * (l + 1)).astype(float)
 
 
+def _check_limits(args) -> None:
+    """The band limits of the command line, checked with the library's own rules and named as options."""
+    from ..galerkin.solver import MAX_BASIS_DEGREE
+
+    args.lmax = check_degree(args.lmax, "--lmax", minimum=1, maximum=MAX_BASIS_DEGREE)
+    if args.lmax_factor is not None:
+        args.lmax_factor = check_degree(args.lmax_factor, "--lmax-factor", minimum=0)
+        if args.lmax_factor > 2 * args.lmax:
+            raise BandLimitError(f"--lmax-factor = {args.lmax_factor} > 2*--lmax = {2 * args.lmax}: degrees of rho "
+                                 "above 2*Lb do not couple two basis functions, so they would be ignored")
+    args.numeig = check_degree(args.numeig, "--numeig", minimum=1)  # the library says how far to raise --lmax
+
+
+@contextlib.contextmanager
+def _status(message: str, after: float = 1.0):
+    """Print ``message`` on stderr if the block is still running after ``after`` seconds (a silent first run)."""
+    timer = threading.Timer(after, lambda: print(message, file=sys.stderr, flush=True))
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()
+
+
+def _number(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
 def run_forward(args) -> int:
     from .. import __version__
     from ..galerkin.solver import spectrum
 
+    _check_limits(args)
+    if args.out and Path(args.out).suffix.lower() not in (".json", ".h5", ".hdf5"):
+        raise InvalidArgumentError(f"--out must end in .json or .h5, got {Path(args.out).name}")
     rho = parse_rho(args.rho, args.lmax_factor if args.lmax_factor is not None else args.lmax)
     start = time.perf_counter()
-    res = spectrum(rho, lmax=args.lmax, k=args.numeig, lmax_factor=args.lmax_factor, cache_dir=args.cache_dir)
+    with warnings.catch_warnings(record=True) as caught, _status(
+            "shspec forward: working... (the first run compiles shspec's numba kernels and builds the Gaunt table "
+            "for these band limits: about half a minute, once)"):
+        warnings.simplefilter("always", TruncationWarning)
+        res = spectrum(rho, lmax=args.lmax, k=args.numeig, lmax_factor=args.lmax_factor, cache_dir=args.cache_dir)
+    for w in caught:
+        if issubclass(w.category, TruncationWarning):
+            print(f"shspec forward: warning: {w.message}", file=sys.stderr)
+        else:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
     seconds = time.perf_counter() - start
     isometric = args.rho.startswith("boost") or args.rho.startswith("sphere")
     exact = _exact_sphere(args.numeig) * (4 * np.pi / rho.area) if isometric else None
-    record = {"rho": args.rho, "lmax": res.lmax, "lmax_factor": res.lmax_factor, "numeig": args.numeig,
-              "area": rho.area, "eigenvalues": res.eigenvalues.tolist(), "seconds": seconds,
-              "shspec_version": __version__}
+    record = {"rho": args.rho, "rho_name": rho.name, "lmax": res.lmax, "lmax_factor": res.lmax_factor, "numeig": args.numeig,
+              "area": rho.area, "eigenvalues": res.eigenvalues.tolist(),
+              # JSON has no inf: a truncation error that cannot be bounded is null
+              "truncation_error_factor": _number(res.truncation.factor),
+              "truncation_error_basis": _number(res.truncation.basis),
+              "truncation_error_unresolved": _number(res.truncation.unresolved),
+              "seconds": seconds, "shspec_version": __version__}
     if exact is not None:
         rel = np.abs(res.eigenvalues[1:] - exact[1:]) / exact[1:]
         record["max_relative_error_vs_exact"] = float(rel.max()) if rel.size else 0.0
     if args.out:
-        _save(Path(args.out), record, res.eigenvectors)
+        # the input itself, not only its name or path, so that the file reproduces the run
+        _save(Path(args.out), dict(record, rho_coefficients=rho.coefficients.tolist()), res.eigenvectors)
     if args.json:
         print(json.dumps(record))
         return 0
@@ -95,6 +147,8 @@ def run_forward(args) -> int:
         print(line)
     if exact is not None:
         print(f"max relative error against the exact spectrum: {record['max_relative_error_vs_exact']:.2e}")
+    print(f"estimated truncation error (relative): rho cut at La {res.truncation.factor:.1e}, basis (Lb-2 to Lb) "
+          f"{res.truncation.basis:.1e}; degrees above rho's own, extrapolated {res.truncation.unresolved:.1e}")
     if args.out:
         print(f"saved to {args.out}")
     return 0
@@ -103,16 +157,16 @@ def run_forward(args) -> int:
 def _save(path: Path, record: dict, vectors: np.ndarray) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".json":
-        path.write_text(json.dumps(record, indent=1))
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(record, indent=1))
     elif path.suffix.lower() in (".h5", ".hdf5"):
-        import h5py
-
-        with h5py.File(path, "w") as f:
+        with atomic_hdf5(path) as f:
             f["eigenvalues"] = np.asarray(record["eigenvalues"])
             f["eigenvectors"] = vectors
+            f["rho_coefficients"] = np.asarray(record["rho_coefficients"])
             for key, value in record.items():
-                if key != "eigenvalues":
-                    f.attrs[key] = value
+                if key not in ("eigenvalues", "rho_coefficients"):
+                    f.attrs[key] = np.nan if value is None else value  # HDF5 has no null; JSON no inf
     else:
         raise InvalidArgumentError(f"--out must end in .json or .h5, got {path.name}")
 

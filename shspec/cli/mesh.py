@@ -31,9 +31,13 @@ def register(subparsers) -> None:
                               "factors.png (Hammer projection of the factors) to DIR.")
     q.add_argument("path", type=Path, help="mesh file (.obj, .ply, .off, .stl)")
     q.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
-    q.add_argument("--tol", type=float, default=CMCFOptions.tol, help="roundness tolerance")
-    q.add_argument("--max-iter", type=int, default=CMCFOptions.max_iter, help="most flow steps")
+    q.add_argument("--tol", type=float, default=CMCFOptions.tol,
+                   help=f"roundness tolerance (default {CMCFOptions.tol:g})")
+    q.add_argument("--max-iter", type=int, default=CMCFOptions.max_iter,
+                   help=f"most flow steps (default {CMCFOptions.max_iter})")
     q.add_argument("--no-center", action="store_true", help="skip Möbius centering")
+    q.add_argument("--merge-vertices", action="store_true",
+                   help="weld vertices at identical positions (a vertex soup; always done for STL)")
     q.set_defaults(func=_cmcf)
 
 
@@ -57,7 +61,7 @@ def _cmcf(args) -> int:
 
     from ..mesh.plot import plot_hammer
 
-    mesh = load_mesh(args.path)
+    mesh = load_mesh(args.path, merge_vertices=args.merge_vertices or None)
     result = cmcf(mesh, CMCFOptions(tol=args.tol, max_iter=args.max_iter, center=not args.no_center))
     out = args.out
     try:
@@ -70,7 +74,8 @@ def _cmcf(args) -> int:
     np.savetxt(out / "factors.txt", result.factors, fmt="%.17g",
                header="conformal factor per vertex: input vertex area / sphere vertex area")
     summary = {
-        "input": str(args.path), "nvertices": mesh.nvertices, "roundness": result.roundness,
+        "input": str(args.path), "tol": args.tol, "max_iter": args.max_iter, "center": not args.no_center,
+        "nvertices": mesh.nvertices, "roundness": result.roundness,
         "iterations": result.iterations, "time": result.seconds, "flips": result.flips,
         "distortion_mean": result.distortion_mean, "distortion_max": result.distortion_max,
         "centering_residual": None if np.isnan(result.centering_residual) else result.centering_residual,

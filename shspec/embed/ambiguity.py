@@ -26,7 +26,9 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import InvalidArgumentError
 from ..mesh.cotan import cotan_stiffness, vertex_areas
 from ..mesh.triangle_mesh import TriangleMesh
-from .embed import EmbedOptions, EmbedResult, EmbedSystem, _iterate
+from .options import EmbedOptions, EmbedResult
+from .solver import lm_iterate
+from .system import EmbedSystem
 from .lengths import check_sphere
 
 __all__ = ["AmbiguityOptions", "Cap", "AmbiguityReport", "detect_ambiguity", "angle_defects"]
@@ -190,7 +192,7 @@ def detect_ambiguity(sphere: TriangleMesh, result: EmbedResult, options: Ambigui
     x0 = mesh.vertices / scale
 
     def relax(x):
-        x, _ = _iterate(system, x, lengths, 0.0, opt.iterations, eopt, [], {"nnz": 0, "cg": 0})
+        x, _ = lm_iterate(system, x, lengths, 0.0, opt.iterations, eopt, [], {"nnz": 0, "cg": 0})
         r = system.residual(x, lengths)
         return float(np.sqrt(np.mean(r * r)))
 

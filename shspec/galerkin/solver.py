@@ -13,6 +13,8 @@ MRRR driver computes only the wanted eigenvectors.  Then v_r = √λ D⁻¹ u is
 
 from __future__ import annotations
 
+import dataclasses
+import warnings
 from dataclasses import dataclass
 
 import numba as nb
@@ -21,16 +23,18 @@ import scipy.linalg
 import scipy.sparse as sp
 
 from ..checks import check_int
-from ..errors import BandLimitError, InvalidArgumentError, NotPositiveError
+from ..errors import BandLimitError, InvalidArgumentError, NotPositiveError, ShspecError, TruncationWarning
 from ..gaunt.cache import get_table
-from ..gaunt.table import GauntTable
+from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
 from ..model import SpectralModel, Spectrum, regularization_weight
+from ..resources import check_need, forward_need
 from ..sphere.factor import ConformalFactor, as_factor
 from ..sphere.harmonics import check_degree, degree_order, degrees, ncoeffs
 from ..sphere.random import random_coefficients
 from ..sphere.rotate import power_spectrum, rotate_coefficients
+from .truncation import DEFAULT_TRUNCATION_TOL, TruncationEstimate, factor_truncation, tail_bound
 
-__all__ = ["HarmonicModel", "SpectrumResult", "spectrum"]
+__all__ = ["HarmonicModel", "SpectrumResult", "spectrum", "MAX_BASIS_DEGREE"]
 
 
 @nb.njit(cache=True, parallel=True)
@@ -58,10 +62,14 @@ class SpectrumResult(Spectrum):
         Basis band limit Lb.
     lmax_factor : int
         Band limit La of the factor used.
+    truncation : TruncationEstimate or None
+        Estimated relative errors from the two band limits (:mod:`shspec.galerkin.truncation`); set by
+        :func:`spectrum`, None from :meth:`HarmonicModel.spectrum`.
     """
 
     lmax: int = 0
     lmax_factor: int = 0
+    truncation: TruncationEstimate | None = None
 
 
 class HarmonicModel(SpectralModel):
@@ -82,13 +90,21 @@ class HarmonicModel(SpectralModel):
     build : bool
         Allow building a missing table.
     check_positive : bool
-        Check ρ > 0 on a grid before each solve (a clear error instead of a non-SPD mass matrix).
+        Check ρ > 0 before each solve (a certified bound: a clear error instead of a non-SPD mass matrix).
+
+    Raises
+    ------
+    ResourceLimitError
+        The table, its plan and the two dense N × N matrices of a solve would not fit in the available memory
+        (:mod:`shspec.resources`); checked before anything is allocated or built.
     """
 
     def __init__(self, lmax: int, lmax_factor: int, *, table: GauntTable | None = None, cache_dir=None,
                  build: bool = True, check_positive: bool = True):
-        lmax = check_degree(lmax, "lmax", minimum=1, maximum=400)
+        lmax = check_degree(lmax, "lmax", minimum=1, maximum=MAX_BASIS_DEGREE)
         lmax_factor = check_degree(lmax_factor, "lmax_factor", maximum=2 * lmax)
+        check_need(forward_need(lmax, lmax_factor, with_table=table is None), limits=(lmax, lmax_factor),
+                   estimate=forward_need)
         if table is None:
             table = get_table(lmax, lmax_factor, cache_dir=cache_dir, build=build)
         elif not isinstance(table, GauntTable):
@@ -299,7 +315,8 @@ def _minimum(params) -> float:
 
 
 def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: GauntTable | None = None,
-             cache_dir=None, build: bool = True) -> SpectrumResult:
+             cache_dir=None, build: bool = True, truncation_tol: float | None = DEFAULT_TRUNCATION_TOL,
+             ) -> SpectrumResult:
     """The first k Laplace–Beltrami eigenpairs of g = ρ g₀ in the harmonic basis of degree <= ``lmax``.
 
     Parameters
@@ -314,11 +331,21 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
         Truncate ρ to this degree La (default: its own band limit, at most 2·Lb).
     table : GauntTable, optional
         Gaunt table to use (default: from the cache, built if missing and ``build``).
+    truncation_tol : float or None
+        Estimate the truncation error of ρ's band limit and of the basis (one more solve at Lb − 2; see
+        :mod:`shspec.galerkin.truncation`) and emit a :class:`~shspec.errors.TruncationWarning` when the larger
+        exceeds this relative error (default 1e-6).  None: no estimate.
 
     Returns
     -------
     SpectrumResult
-        ``eigenvalues`` (k,) ascending and M-orthonormal ``eigenvectors`` (N, k).
+        ``eigenvalues`` (k,) ascending, M-orthonormal ``eigenvectors`` (N, k) and the ``truncation`` estimate.
+
+    Raises
+    ------
+    NotPositiveError
+        ρ cut to La is not positive; the message says when the cut is the cause (ρ itself positive, or its
+        coefficients not decayed at their last degree).
 
     Examples
     --------
@@ -326,9 +353,80 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
     >>> spectrum(rho, lmax=20, k=9).eigenvalues.round(8)
     array([0., 2., 2., 2., 6., 6., 6., 6., 6.])
     """
-    factor = as_factor(rho)
+    factor = _as_input_factor(rho)
     la = factor.lmax if lmax_factor is None else check_degree(lmax_factor, "lmax_factor")
-    lmax = check_degree(lmax, "lmax", minimum=1, maximum=400)
+    lmax = check_degree(lmax, "lmax", minimum=1, maximum=MAX_BASIS_DEGREE)
+    if truncation_tol is not None and not (np.isfinite(truncation_tol) and truncation_tol > 0):
+        raise InvalidArgumentError(f"truncation_tol must be None or finite and > 0, got {truncation_tol!r}")
     # degrees above 2·Lb do not couple two basis functions: dropping them changes nothing
     model = HarmonicModel(lmax, min(la, 2 * lmax), table=table, cache_dir=cache_dir, build=build)
-    return model.spectrum(factor.truncated(model.lmax_factor), k)
+    cut = factor.truncated(model.lmax_factor)
+    try:
+        low = cut.check_positive()
+    except NotPositiveError as exc:
+        raise NotPositiveError(f"{exc}{_truncation_cause(factor, model.lmax_factor)}") from None
+    result = model.spectrum(cut, k)
+    if truncation_tol is None:
+        return result
+    estimate = TruncationEstimate(factor_truncation(factor.coefficients, model.lmax_factor, low.value),
+                                  _basis_truncation(model, cut, result),
+                                  factor_truncation(factor.coefficients, model.lmax_factor, low.value,
+                                                    extrapolate=True))
+    if estimate.total > truncation_tol:
+        warnings.warn(f"the spectrum of {factor.name} at Lb = {lmax}, La = {model.lmax_factor} may be off by "
+                      f"{_percent(estimate.total)} (relative): cutting rho at La {_percent(estimate.factor)}, the "
+                      f"basis (change from Lb-2) {_percent(estimate.basis)}; if rho's expansion is itself cut, its "
+                      f"unresolved degrees {_percent(estimate.unresolved)}; raise the band limits (see "
+                      "shspec.galerkin.truncation)", TruncationWarning, stacklevel=2)
+    return dataclasses.replace(result, truncation=estimate)
+
+
+def _as_input_factor(rho) -> ConformalFactor:
+    try:
+        return as_factor(rho)
+    except ShspecError:
+        raise
+    except (TypeError, ValueError) as exc:
+        raise InvalidArgumentError(f"rho must be a ConformalFactor, flat coefficients, a cilm array or SHCoeffs "
+                                   f"of numbers; got {type(rho).__name__}: {exc}") from None
+
+
+def _percent(x: float) -> str:
+    if np.isnan(x):
+        return "(not estimated)"
+    if not np.isfinite(x) or x >= 1:
+        return ">= 100 %"
+    return f"{100 * x:.2g} %" if x >= 1e-4 else f"{x:.1e}"
+
+
+def _basis_truncation(model: HarmonicModel, cut: ConformalFactor, result: SpectrumResult) -> float:
+    """max relative change of the eigenvalues from Lb − 2 to Lb (NaN when Lb − 2 < 1)."""
+    lb = model.lmax - 2
+    if lb < 1:
+        return float("nan")
+    smaller = HarmonicModel(lb, min(model.lmax_factor, 2 * lb), table=model.table, check_positive=False)
+    k = min(result.eigenvalues.size, smaller.nbasis)
+    if k < 2:
+        return float("nan")
+    coarse = smaller.spectrum(cut.truncated(smaller.lmax_factor), k).eigenvalues[1:]
+    fine = result.eigenvalues[1:k]
+    return float(np.max(np.abs(coarse - fine) / fine))
+
+
+def _truncation_cause(factor: ConformalFactor, la: int) -> str:
+    """A sentence naming truncation as the cause of a negative cut factor, or '' when it is not."""
+    if factor.lmax > la:
+        try:
+            factor.check_positive()
+        except NotPositiveError:
+            pass
+        else:
+            return (f". The given rho (degree {factor.lmax}) is positive: cutting it at La = {la} made it negative; "
+                    f"raise lmax_factor (at most 2*lmax)")
+    tail = tail_bound(factor.coefficients, factor.lmax)
+    mean = factor.area / (4 * np.pi)
+    if not tail < 0.01 * mean:
+        return (f". Its coefficients have not decayed at their last degree {factor.lmax} (the part above it is "
+                f"estimated at {tail:.3g}, against a mean of {mean:.3g}): this is probably the truncation of a "
+                "positive function, not a negative one; expand rho to a higher degree")
+    return ""

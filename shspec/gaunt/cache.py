@@ -14,8 +14,13 @@ attr ``checksum`` ``"blake2b:<hex>"`` of the raw little-endian bytes of ``/value
 attr ``shspec_version``, ``created`` (ISO 8601, UTC), ``build_seconds``
 ================  =========================================================================================
 
-The cache directory is, in order: the ``cache_dir`` argument, the ``SHSPEC_CACHE`` environment variable, the
-``cache/`` folder of a source checkout, or the user cache folder (``~/.cache/shspec``).
+The cache directory is, in order: the ``cache_dir`` argument, the ``SHSPEC_CACHE`` environment variable, or the
+user cache folder ``$XDG_CACHE_HOME/shspec`` (``~/.cache/shspec``).  The rule does not depend on where shspec is
+installed or run from, so ``python -m precompute`` in a checkout and the installed ``shspec`` share one cache.
+
+Writes are atomic (:mod:`shspec.atomic`) and hold the table's lock file ``<name>.lock``; a temporary file
+``<name>.<random>.tmp`` that exists while nobody holds the lock was left by a writer that was killed, and is removed
+by the next writer of that table (or :func:`remove_stale_files`).
 """
 
 from __future__ import annotations
@@ -26,7 +31,6 @@ import fcntl
 import hashlib
 import os
 import re
-import tempfile
 import time
 import warnings
 from collections import OrderedDict
@@ -37,12 +41,15 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from ..atomic import atomic_hdf5, temporary_files
+from ..resources import check_need, table_need
 from ..errors import (BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError)
 from .build import build_table
 from .table import GauntTable, check_limits, table_size
 
-__all__ = ["CONVENTION", "FORMAT_VERSION", "TableInfo", "cache_dir", "table_path", "save_table", "load_table",
-           "get_table", "list_tables", "verify_table", "ensure_cache_dir"]
+__all__ = ["CONVENTION", "FORMAT_VERSION", "TableInfo", "TempFileInfo", "cache_dir", "cache_dir_source", "table_path",
+           "save_table", "load_table", "get_table", "list_tables", "list_temporary_files", "remove_stale_files",
+           "verify_table", "ensure_cache_dir"]
 
 FORMAT_VERSION = 1
 CONVENTION = "real-ortho-csphase1-pyshtools; flat i=l*l+l+m; G_ijk=int Y_i Y_j Y_k dOmega"
@@ -50,16 +57,18 @@ _NAME = re.compile(r"^gaunt_Lb(\d+)_La(\d+)\.h5$")
 
 
 def cache_dir(path: str | os.PathLike | None = None) -> Path:
-    """The cache directory to use (see the module docstring for the order of precedence)."""
+    """The cache directory to use: ``path``, else ``$SHSPEC_CACHE``, else ``$XDG_CACHE_HOME/shspec`` (~/.cache/shspec)."""
+    return cache_dir_source(path)[0]
+
+
+def cache_dir_source(path: str | os.PathLike | None = None) -> tuple[Path, str]:
+    """The cache directory and why it is that one (``"--cache-dir"``, ``"$SHSPEC_CACHE"`` or ``"user cache"``)."""
     if path is not None:
-        return Path(path)
+        return Path(path), "--cache-dir"
     env = os.environ.get("SHSPEC_CACHE")
     if env:
-        return Path(env)
-    checkout = Path(__file__).resolve().parents[1] / "cache"
-    if checkout.is_dir():
-        return checkout
-    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "shspec"
+        return Path(env), "$SHSPEC_CACHE"
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "shspec", "user cache"
 
 
 def table_path(lmax: int, lmax_factor: int, directory: str | os.PathLike | None = None) -> Path:
@@ -81,19 +90,50 @@ def ensure_cache_dir(directory: Path) -> Path:
     return directory
 
 
+def _lock_path(path: Path) -> Path:
+    return path.with_name(path.name + ".lock")
+
+
 @contextlib.contextmanager
 def _locked(path: Path):
-    """Exclusive advisory lock on ``path.lock`` so that concurrent builders of one table wait for each other."""
-    lock = path.with_name(path.name + ".lock")
+    """Exclusive advisory lock on ``path.lock`` so that concurrent builders of one table wait for each other.
+
+    Every writer of ``path`` holds this lock, so once we have it any temporary file of ``path`` belongs to a writer
+    that died (SIGKILL, power cut) and is removed here.
+    """
+    lock = _lock_path(path)
     try:
         fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as exc:
         raise CacheLocationError(f"cannot create the lock file {lock}: {exc.strerror}") from exc
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)
+        for tmp in temporary_files(path):
+            with contextlib.suppress(OSError):
+                tmp.unlink()
         yield
     finally:
         fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+
+
+def _writer_active(path: Path) -> bool:
+    """True when some process holds the lock of ``path`` (is building or writing it) right now."""
+    lock = _lock_path(path)
+    try:
+        fd = os.open(lock, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:
+        return False
+    else:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return False
+    finally:
         os.close(fd)
 
 
@@ -105,37 +145,35 @@ def _checksum(values: np.ndarray) -> str:
 
 def save_table(table: GauntTable, directory: str | os.PathLike | None = None, *, build_seconds: float = float("nan"),
                ) -> Path:
-    """Write ``table`` to the cache atomically (temporary file in the same folder, fsync, rename); returns the path."""
-    from .. import __version__
+    """Write ``table`` to the cache atomically, under the table's lock; returns the path.
 
+    An existing file is replaced only once the new one is complete and synced (see :mod:`shspec.atomic`).
+    """
     directory = ensure_cache_dir(cache_dir(directory))
     path = table_path(table.lmax, table.lmax_factor, directory)
+    with _locked(path):
+        return _write(table, path, build_seconds)
+
+
+def _write(table: GauntTable, path: Path, build_seconds: float) -> Path:
+    """Write ``table`` to ``path`` atomically; the caller holds the lock."""
+    from .. import __version__
+
     checksum = _checksum(table.values)
     created = datetime.now(timezone.utc).isoformat(timespec="seconds")
-    fd, tmp = tempfile.mkstemp(dir=directory, prefix=path.name + ".", suffix=".tmp")
-    os.close(fd)
     try:
-        with h5py.File(tmp, "w") as f:
+        with atomic_hdf5(path) as f:
             f.create_dataset("values", data=table.values)
             attrs = {"format": "shspec-gaunt", "format_version": FORMAT_VERSION, "lmax": table.lmax,
                      "lmax_factor": table.lmax_factor, "convention": CONVENTION, "count": table.values.size,
                      "checksum": checksum, "shspec_version": __version__, "created": created,
                      "build_seconds": build_seconds}
             f.attrs.update(attrs)
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
     except OSError as exc:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
         if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-            raise CacheLocationError(f"no space left in {directory} to write {path.name} "
+            raise CacheLocationError(f"no space left in {path.parent} to write {path.name} "
                                      f"({table.values.nbytes / 2**20:.0f} MiB)") from exc
         raise CacheLocationError(f"cannot write {path}: {exc}") from exc
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
     table.path = path
     table.metadata = dict(checksum=checksum, created=created, shspec_version=__version__,
                           build_seconds=build_seconds)
@@ -219,10 +257,26 @@ class TableInfo:
     problem: str | None  # why the file is unusable, or None
 
 
-def list_tables(directory: str | os.PathLike | None = None) -> list[TableInfo]:
-    """The tables in the cache directory, smallest first, with a note on any that cannot be used."""
+def list_tables(directory: str | os.PathLike | None = None, *, verify: bool = False) -> list[TableInfo]:
+    """The tables in the cache directory, smallest first, with a note on any that cannot be used.
+
+    Parameters
+    ----------
+    directory : path-like, optional
+        Cache directory (default: :func:`cache_dir`).  A missing folder holds no tables.
+    verify : bool
+        Read every table in full and check its checksum (seconds per GiB); otherwise only the attributes and the
+        shape of the values are checked.
+
+    Raises
+    ------
+    CacheLocationError
+        The location exists and is not a directory.
+    """
     directory = cache_dir(directory)
     out = []
+    if directory.exists() and not directory.is_dir():
+        raise CacheLocationError(f"the cache location {directory} is a file, not a directory")
     if not directory.is_dir():
         return out
     for path in sorted(directory.iterdir()):
@@ -239,10 +293,53 @@ def list_tables(directory: str | os.PathLike | None = None) -> list[TableInfo]:
                     problem = f"format version {f.attrs.get('format_version')}"
                 elif (int(f.attrs.get("lmax", -1)), int(f.attrs.get("lmax_factor", -1))) != (lb, la):
                     problem = "band limits in the file do not match its name"
-        except OSError as exc:
+                elif "values" not in f or f["values"].shape != (table_size(lb, la),):
+                    problem = f"holds {f['values'].shape if 'values' in f else 'no'} values, not ({table_size(lb, la)},)"
+        except (OSError, ValueError, BandLimitError) as exc:
             problem = f"unreadable: {exc}"
+        if problem is None and verify:
+            try:
+                _read(path, lb, la)
+            except (CorruptTableError, TableMismatchError) as exc:
+                problem = str(exc).replace(f"{path} ", "", 1)
         out.append(TableInfo(path, lb, la, count, path.stat().st_size, created, problem))
     return sorted(out, key=lambda t: (t.count, t.lmax, t.lmax_factor))
+
+
+@dataclass(frozen=True)
+class TempFileInfo:
+    """A temporary file of an unfinished table write: ``stale`` when no writer holds the table's lock."""
+
+    path: Path
+    table: Path
+    nbytes: int
+    stale: bool
+
+
+def list_temporary_files(directory: str | os.PathLike | None = None) -> list[TempFileInfo]:
+    """Temporary files of table writes in the cache directory (a killed writer leaves its file behind)."""
+    directory = cache_dir(directory)
+    if not directory.is_dir():
+        return []
+    tables = {directory / p.name.split(".h5.", 1)[0] for p in directory.glob("gaunt_*.h5.*.tmp")}
+    out = []
+    for table in sorted(tables):
+        table = table.with_name(table.name + ".h5")
+        active = _writer_active(table)
+        for tmp in temporary_files(table):
+            with contextlib.suppress(OSError):
+                out.append(TempFileInfo(tmp, table, tmp.stat().st_size, not active))
+    return out
+
+
+def remove_stale_files(directory: str | os.PathLike | None = None) -> list[TempFileInfo]:
+    """Remove the temporary files that no running writer owns; returns what was removed."""
+    removed = []
+    for info in list_temporary_files(directory):
+        if info.stale:
+            with _locked(info.table):  # removes every temporary file of that table, now that we own its lock
+                removed.append(info)
+    return removed
 
 
 def load_table(lmax: int, lmax_factor: int, directory: str | os.PathLike | None = None) -> GauntTable:
@@ -268,8 +365,13 @@ def load_table(lmax: int, lmax_factor: int, directory: str | os.PathLike | None 
     raise FileNotFoundError(f"no cached Gaunt table covers ({lmax},{lmax_factor}) in {cache_dir(directory)}")
 
 
+#: Values per second a table build reaches on one core of a 2020s machine (measured 0.8-1.5e7 on two cores);
+#: used only to decide whether a build is long enough for a progress bar.
+_BUILD_RATE = 5e6
+
+
 def get_table(lmax: int, lmax_factor: int, *, cache_dir: str | os.PathLike | None = None, build: bool = True,
-              rebuild_corrupt: bool = False, progress: bool = False) -> GauntTable:
+              rebuild_corrupt: bool = False, force: bool = False, progress: bool | None = None) -> GauntTable:
     """The Gaunt table (Lb, La): from the cache if there, otherwise built (and saved) when ``build`` is True.
 
     Parameters
@@ -282,13 +384,23 @@ def get_table(lmax: int, lmax_factor: int, *, cache_dir: str | os.PathLike | Non
         Build and save a missing table; when False a missing table raises :class:`BandLimitError`.
     rebuild_corrupt : bool
         Replace a corrupt or outdated file by a fresh build, with a warning, instead of raising.
-    progress : bool
-        Progress bar while building.
+    force : bool
+        Build the table again even if a valid one is cached.  The cached file stays in place (and usable by
+        others) until the new one is complete and renamed over it; an interrupted rebuild leaves it untouched.
+    progress : bool or None
+        Progress bar (stderr) while building; None (default): only for a build expected to take over a second.
+
+    Raises
+    ------
+    ResourceLimitError
+        Building the table would need more memory than is available or more disk than is free (checked first;
+        the message says which band limits fit).
     """
     directory = cache_dir
     lmax, lmax_factor = check_limits(lmax, lmax_factor)
     try:
-        return load_table(lmax, lmax_factor, directory)
+        if not force:
+            return load_table(lmax, lmax_factor, directory)
     except FileNotFoundError:
         if not build:
             raise BandLimitError(f"no cached Gaunt table covers (lmax={lmax}, lmax_factor={lmax_factor}) and "
@@ -300,9 +412,13 @@ def get_table(lmax: int, lmax_factor: int, *, cache_dir: str | os.PathLike | Non
         warnings.warn(f"rebuilding the Gaunt table: {exc}", stacklevel=2)
     path = table_path(lmax, lmax_factor, directory)
     ensure_cache_dir(path.parent)
+    need = table_need(lmax, lmax_factor)
+    check_need(need, disk_path=path.parent, limits=(lmax, lmax_factor), estimate=table_need)
+    if progress is None:
+        progress = need.memory / 8 > _BUILD_RATE
     with _locked(path):
         # another process may have built it while we waited for the lock
-        if path.exists():
+        if path.exists() and not force:
             try:
                 return _read(path, lmax, lmax_factor)
             except (CorruptTableError, TableMismatchError):
@@ -310,7 +426,7 @@ def get_table(lmax: int, lmax_factor: int, *, cache_dir: str | os.PathLike | Non
                     raise
         start = time.perf_counter()
         table = build_table(lmax, lmax_factor, progress=progress)
-        save_table(table, directory, build_seconds=time.perf_counter() - start)
+        _write(table, path, time.perf_counter() - start)
     return table
 
 

@@ -24,13 +24,18 @@ from ..errors import BandLimitError, InvalidArgumentError
 from .real_gaunt import order_factor
 from ..sphere.harmonics import check_degree, ncoeffs
 
-__all__ = ["GauntTable", "table_size", "check_limits"]
+__all__ = ["GauntTable", "table_size", "check_limits", "plan_bytes", "PLAN_ENTRY_BYTES", "MAX_BASIS_DEGREE"]
+
+
+#: Largest basis band limit Lb of a table and of a forward solve (the table and the dense N×N matrices,
+#: N = (Lb+1)², must fit in memory: Lb = 400 already needs ~200 GiB).  One constant for the library and the CLI.
+MAX_BASIS_DEGREE = 400
 
 
 def check_limits(lmax, lmax_factor) -> tuple[int, int]:
     """Validate a pair of band limits (Lb for the basis, La for ρ); La may not exceed 2·Lb (G would vanish)."""
-    lmax = check_degree(lmax, "lmax (basis band limit Lb)", maximum=400)
-    lmax_factor = check_degree(lmax_factor, "lmax_factor (band limit La of rho)", maximum=400)
+    lmax = check_degree(lmax, "lmax (basis band limit Lb)", maximum=MAX_BASIS_DEGREE)
+    lmax_factor = check_degree(lmax_factor, "lmax_factor (band limit La of rho)", maximum=MAX_BASIS_DEGREE)
     if lmax_factor > 2 * lmax:
         raise BandLimitError(
             f"lmax_factor = {lmax_factor} > 2*lmax = {2 * lmax}: degrees above 2*Lb cannot couple two basis "
@@ -413,3 +418,23 @@ class GauntTable:
         if not np.all(np.isfinite(coef)):
             raise InvalidArgumentError("factor coefficients contain NaN or inf")
         return coef
+
+
+
+#: Bytes per plan entry: i, j, m3, l3min, count (int32), offset (int64), factor (float64).
+PLAN_ENTRY_BYTES = 5 * 4 + 8 + 8
+
+
+def plan_bytes(lmax: int, lmax_factor: int) -> int:
+    """An upper bound of the memory of the assembly plan of the table (Lb, La), without building it.
+
+    A real pair (i <= j) couples through at most two orders m3 (±(|m_i| + |m_j|) and ±(|m_i| − |m_j|), one sign
+    each), and only pairs with |l_i − l_j| <= La have any l3, so the plan has at most
+    2 · #{(i <= j) : |l_i − l_j| <= La} entries (the true count is 90-95 % of it at La = Lb = 120).
+    """
+    lmax, lmax_factor = check_limits(lmax, lmax_factor)
+    l = np.arange(lmax + 1)
+    w = 2 * l + 1
+    close = np.abs(l[:, None] - l[None, :]) <= lmax_factor
+    pairs = (np.sum(np.outer(w, w) * close) + np.sum(w)) // 2  # ordered pairs i <= j
+    return PLAN_ENTRY_BYTES * 2 * int(pairs)

@@ -282,7 +282,11 @@ def wigner3j(l1: int, l2: int, l3: int, m1: int, m2: int, m3: int) -> float:
     Raises
     ------
     InvalidArgumentError
-        An argument that is not an integer (half-integer spins are not supported) or exceeds 2 × MAX_DEGREE.
+        An argument that is not an integer (half-integer spins are not supported), a negative degree (as
+        :func:`~shspec.gaunt.real_gaunt.real_gaunt` refuses), or one that exceeds 2 × MAX_DEGREE.
     """
     args = [_check_int(n, v) for n, v in zip(("l1", "l2", "l3", "m1", "m2", "m3"), (l1, l2, l3, m1, m2, m3))]
+    for name, l in zip(("l1", "l2", "l3"), args[:3]):
+        if l < 0:
+            raise InvalidArgumentError(f"{name} = {l}: degrees are >= 0")
     return float(_wigner3j_scalar(*args))

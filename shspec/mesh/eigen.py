@@ -20,7 +20,8 @@ Multiplets
 ----------
 The solver keeps iterating until the (k+1)-th eigenvalue has converged too, so that it can tell whether the k-th
 one belongs to a group that continues past k.  Eigenvalues within ``multiplet_rtol`` times the largest computed
-one of each other count as one degenerate group.  A block of b vectors sees at most b copies of a repeated
+one of each other count as one degenerate group (the largest of λ₀..λ_k, not of every computed eigenvalue: one
+sliver face adds a huge eigenvalue that would merge everything).  A block of b vectors sees at most b copies of a repeated
 eigenvalue at first; when a group of b or more shows up, b random vectors are added to the basis and the result is
 accepted only once the count of eigenvalues up to the cut stays the same.  :func:`eigenpairs` with ``whole_multiplets=True`` (the default of :func:`mesh_spectrum`)
 returns more than k pairs when the k-th eigenvalue's group continues past k, so that no member is dropped; with
@@ -40,10 +41,11 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ..errors import ConvergenceError, InvalidArgumentError
+from ..errors import ConvergenceError, InvalidArgumentError, MeshError
 from ..model import Spectrum
 from .cotan import cotan_stiffness, mass_matrix
 from .triangle_mesh import TriangleMesh
+from .validate import ZERO_AREA_RTOL
 
 __all__ = ["EigenOptions", "eigenpairs", "mesh_spectrum"]
 
@@ -64,8 +66,9 @@ class EigenOptions:
         Block size b.  Multiplicities up to b are found directly, larger ones through the random directions that
         replace exhausted ones; small blocks converge in fewer solves (8 was fastest for k = 100 on icospheres).
     multiplet_rtol : float
-        Neighbouring eigenvalues closer than multiplet_rtol × (largest computed eigenvalue) form one degenerate
-        group; the absolute floor lets the zero eigenvalues of several components group too.
+        Neighbouring eigenvalues closer than multiplet_rtol × max(|λ₀|, …, |λ_k|) form one degenerate group; being
+        relative to the wanted eigenvalues, not to the whole computed spectrum, a sliver face's huge eigenvalue does
+        not change the groups, and the zero eigenvalues of several components still group.
     max_dim : int or None
         Largest Krylov basis before :class:`ConvergenceError`; None: min(n, 4k + 50b) (k = 100 needs ~350;
         exact multiplicities above b need more).
@@ -111,9 +114,18 @@ def _check_pencil(L, M, k):
     return n, int(k)
 
 
+def _scale(lam: np.ndarray, k: int) -> float:
+    """The size of the wanted part of a spectrum, max |λ_0..λ_k|, that degenerate-group tolerances are relative to.
+
+    Not the largest computed eigenvalue: one sliver face gives a mesh an eigenvalue many orders of magnitude above
+    the rest, which would merge every wanted eigenvalue into one group.
+    """
+    return max(float(np.abs(lam[:k + 1]).max()) if lam.size else 0.0, np.finfo(float).tiny)
+
+
 def _group_end(lam: np.ndarray, k: int, rtol: float) -> int:
-    """Smallest j ≥ k such that lam[j] is not within rtol·max|lam| of lam[k-1] (len(lam) if all are)."""
-    tol = rtol * max(np.abs(lam).max(), np.finfo(float).tiny)
+    """Smallest j ≥ k such that lam[j] is not within rtol·max|lam[:k+1]| of lam[k-1] (len(lam) if all are)."""
+    tol = rtol * _scale(lam, k)
     j = k
     while j < lam.size and abs(lam[j] - lam[k - 1]) <= tol:
         j += 1
@@ -124,7 +136,7 @@ def _largest_group(lam: np.ndarray, rtol: float) -> int:
     """Size of the largest run of ascending eigenvalues whose neighbours are within rtol·max|lam| of each other."""
     if lam.size == 0:
         return 0
-    tol = rtol * max(np.abs(lam).max(), np.finfo(float).tiny)
+    tol = rtol * _scale(lam, lam.size)
     bounds = np.concatenate([[0], np.flatnonzero(np.diff(lam) > tol) + 1, [lam.size]])
     return int(np.diff(bounds).max())
 
@@ -139,6 +151,11 @@ def _finish(L, M, Y, k, rtol, whole):
 
 def _select(lam, V, k, rtol, whole):
     """The first k pairs, completed to the end of the k-th one's degenerate group if ``whole``, else with a warning."""
+    # λ₀ of a semi-definite L is 0 up to rounding (~1e-15 relative); anything clearly below is a broken pencil
+    if lam.size and lam[0] < -1e-8 * _scale(lam, k):
+        raise InvalidArgumentError(
+            f"the pencil has a negative eigenvalue {lam[0]:.6g}: L is not positive semi-definite or M is not positive "
+            "definite (a mesh with degenerate faces? see shspec.mesh.validate_mesh)")
     end = _group_end(lam, k, rtol)
     if end > k and not whole:
         warnings.warn(f"eigenvalues {k - 1}..{end - 1} form one degenerate group (within {rtol:g}); only the first "
@@ -331,5 +348,18 @@ def mesh_spectrum(mesh: TriangleMesh, k: int, mass: str = "lumped", *, whole_mul
     -------
     Spectrum
         Eigenvalues ascending in 1/(length unit)², eigenvectors (n, k') M-orthonormal, k' ≥ k.
+
+    Raises
+    ------
+    MeshError
+        A face of zero area (below :data:`~shspec.mesh.validate.ZERO_AREA_RTOL` of the mean): its cotangents are
+        not defined and the pencil loses definiteness, which would give negative eigenvalues.
     """
+    if not isinstance(mesh, TriangleMesh):
+        raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
+    areas = mesh.face_areas()
+    zero = np.flatnonzero(~(areas > ZERO_AREA_RTOL * areas.mean()))
+    if zero.size:
+        raise MeshError(f"{zero.size} faces have zero area (first: face {zero[0]} = {mesh.faces[zero[0]].tolist()}, "
+                        f"area {areas[zero[0]]:.3g}); the cotan Laplacian is undefined there")
     return eigenpairs(cotan_stiffness(mesh), mass_matrix(mesh, mass), k, options, whole_multiplets=whole_multiplets)

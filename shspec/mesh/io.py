@@ -22,7 +22,7 @@ def _check_suffix(path: Path) -> None:
         raise InvalidArgumentError(f"{path}: unsupported mesh format {path.suffix!r}; use one of {MESH_FORMATS}")
 
 
-def load_mesh(path, *, validate: bool = True) -> TriangleMesh:
+def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None) -> TriangleMesh:
     """Read a triangle mesh, keeping the stored vertex order.
 
     Parameters
@@ -31,6 +31,10 @@ def load_mesh(path, *, validate: bool = True) -> TriangleMesh:
         An ``.obj``, ``.ply``, ``.off`` or ``.stl`` file.
     validate : bool, default True
         Run :func:`~shspec.mesh.validate.validate_mesh` (closed, manifold, oriented, one component, genus 0).
+    merge_vertices : bool or None
+        Merge vertices at identical positions (weld a "vertex soup" whose faces do not share vertices).  None
+        (default): only for STL, which cannot share vertices.  When validation fails and the file has duplicate
+        positions, the error says so and suggests this option.
 
     Returns
     -------
@@ -54,7 +58,7 @@ def load_mesh(path, *, validate: bool = True) -> TriangleMesh:
     _check_suffix(path)
     if not path.is_file():
         raise MeshError(f"{path}: no such file")
-    process = path.suffix.lower() == ".stl"
+    process = path.suffix.lower() == ".stl" if merge_vertices is None else bool(merge_vertices)
     try:
         loaded = trimesh.load(path, process=process, force="mesh")
     except Exception as exc:  # trimesh raises many unrelated types on malformed input
@@ -62,7 +66,17 @@ def load_mesh(path, *, validate: bool = True) -> TriangleMesh:
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise MeshError(f"{path}: holds no triangles")
     mesh = TriangleMesh(np.asarray(loaded.vertices), np.asarray(loaded.faces))
-    return validate_mesh(mesh) if validate else mesh
+    if not validate:
+        return mesh
+    try:
+        return validate_mesh(mesh)
+    except MeshError as exc:
+        duplicates = mesh.nvertices - np.unique(mesh.vertices, axis=0).shape[0]
+        if duplicates and not process:
+            raise MeshError(f"{path}: {exc}; {duplicates} of its {mesh.nvertices} vertices repeat the position of "
+                            "another (faces that do not share their vertices?): weld them with --merge-vertices "
+                            "(merge_vertices=True)") from None
+        raise
 
 
 def save_mesh(mesh: TriangleMesh, path) -> Path:

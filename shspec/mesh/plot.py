@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidArgumentError
+from ..plotstyle import log_colorbar_ticks, style_hammer
 from .cotan import vertex_areas
 from .triangle_mesh import TriangleMesh
 
@@ -26,7 +27,7 @@ def plot_hammer(sphere: TriangleMesh, values, *, ax=None, cmap: str = "viridis",
     cmap : str
         Matplotlib colormap name.
     title, label : str, optional
-        Axes title and colour-bar label.
+        Axes title and colour-bar label (default "value", or "value (log scale)").
     log : bool
         Colour by log10 of the values (they must then be > 0).
     percentiles : (float, float)
@@ -44,7 +45,6 @@ def plot_hammer(sphere: TriangleMesh, values, *, ax=None, cmap: str = "viridis",
     """
     import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm, Normalize
-    from matplotlib.ticker import NullFormatter
     from matplotlib.tri import Triangulation
 
     if not isinstance(sphere, TriangleMesh):
@@ -72,11 +72,12 @@ def plot_hammer(sphere: TriangleMesh, values, *, ax=None, cmap: str = "viridis",
     fig = ax.figure
     norm = LogNorm(vmin, vmax) if log else Normalize(vmin, vmax)
     art = ax.tripcolor(tri, f, shading="gouraud", cmap=cmap, norm=norm)
-    ax.grid(True, alpha=0.4)
-    bar = fig.colorbar(art, ax=ax, orientation="horizontal", shrink=0.6, pad=0.08, label=label, extend="both")
+    style_hammer(ax)
+    if label is None:
+        label = "value (log scale)" if log else "value"
+    bar = fig.colorbar(art, ax=ax, orientation="horizontal", shrink=0.6, pad=0.06, label=label, extend="both")
     if log:
-        # Less than a decade of range gets labels on the minor ticks too, which then overlap.
-        bar.ax.xaxis.set_minor_formatter(NullFormatter())
+        log_colorbar_ticks(bar, vmin, vmax)
     if title:
-        ax.set_title(title, pad=18)
+        ax.set_title(title, pad=10)
     return fig

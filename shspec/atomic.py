@@ -1,0 +1,133 @@
+"""Atomic file writes: a file either keeps its old content or gets the complete new one, never a half-written one.
+
+The new content goes to a temporary file in the destination's own folder (a rename is only atomic within one file
+system), which is flushed and fsynced, renamed over the destination, and then the folder is fsynced so that the
+rename itself survives a power cut.  Any exception, ``KeyboardInterrupt`` included, removes the temporary file and
+leaves the destination as it was.  A process killed with SIGKILL cannot clean up: its temporary file stays behind,
+named ``<destination name>.<random>.tmp`` (:func:`temporary_files` finds them, for whoever owns the lock of the
+destination to remove).
+
+Files are created with the mode ``mode & ~umask`` (0644 under the usual umask 022), like any file a program
+writes, not with the 0600 of :func:`tempfile.mkstemp`, so that a shared folder stays readable to its users.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import glob
+import os
+import tempfile
+from pathlib import Path
+from typing import Iterator
+
+import h5py
+
+__all__ = ["TEMP_SUFFIX", "atomic_path", "atomic_hdf5", "temporary_files", "umask_mode"]
+
+TEMP_SUFFIX = ".tmp"
+
+
+def umask_mode(mode: int = 0o644) -> int:
+    """``mode`` with the bits of the process umask cleared (the mode ``open()`` would give a new file)."""
+    # os.umask can only be read by setting it; /proc avoids the (brief, process-wide) change where it exists.
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return mode & ~int(line.split()[1], 8)
+    except OSError:
+        pass
+    current = os.umask(0o022)
+    os.umask(current)
+    return mode & ~current
+
+
+def _fsync_dir(directory: Path) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:  # some platforms and file systems cannot open a folder; the rename is still atomic there
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, *, mode: int = 0o644) -> Iterator[Path]:
+    """Context manager giving a temporary path to write; on success it replaces ``path`` atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        The destination.  Its folder must exist; an existing file there is replaced only when the block succeeds.
+    mode : int
+        Permission bits of the new file before the umask is applied (default 0o644).
+
+    Yields
+    ------
+    pathlib.Path
+        An empty temporary file ``<path name>.<random>.tmp`` in the same folder.  Write it completely (and close
+        it) inside the block; the context manager then fsyncs it, renames it over ``path`` and fsyncs the folder.
+
+    Raises
+    ------
+    OSError
+        Creating, syncing or renaming failed (the temporary file is removed).  Exceptions raised inside the block
+        propagate unchanged, after the temporary file is removed.
+
+    Examples
+    --------
+    >>> with atomic_path(folder / "result.json") as tmp:      # doctest: +SKIP
+    ...     tmp.write_text(json.dumps(record))
+    """
+    path = Path(path)
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=TEMP_SUFFIX)
+    tmp = Path(name)
+    try:
+        os.fchmod(fd, umask_mode(mode))
+        os.close(fd)
+        fd = -1
+        yield tmp
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if fd >= 0:
+            os.close(fd)
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    _fsync_dir(path.parent)
+
+
+@contextlib.contextmanager
+def atomic_hdf5(path: str | os.PathLike, *, mode: int = 0o644, **h5py_options) -> Iterator[h5py.File]:
+    """Context manager giving a new ``h5py.File`` to fill; on success it replaces ``path`` atomically.
+
+    The file is opened in mode ``"w"`` on a temporary path (see :func:`atomic_path`), closed at the end of the block,
+    then fsynced and renamed over ``path``.  ``h5py_options`` go to :class:`h5py.File` (e.g. ``libver``).
+
+    Examples
+    --------
+    >>> with atomic_hdf5(folder / "table.h5") as f:           # doctest: +SKIP
+    ...     f.create_dataset("values", data=values)
+    ...     f.attrs["checksum"] = checksum
+    """
+    with atomic_path(path, mode=mode) as tmp:
+        with h5py.File(tmp, "w", **h5py_options) as f:
+            yield f
+
+
+def temporary_files(path: str | os.PathLike) -> list[Path]:
+    """Temporary files left by writes of ``path`` that never finished (or are still running), oldest first."""
+    path = Path(path)
+    if not path.parent.is_dir():
+        return []
+    found = []
+    for p in path.parent.glob(f"{glob.escape(path.name)}.*{TEMP_SUFFIX}"):
+        with contextlib.suppress(OSError):  # a writer may rename or remove it meanwhile
+            found.append((p.stat().st_mtime, p))
+    return [p for _, p in sorted(found)]
