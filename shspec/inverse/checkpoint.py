@@ -4,8 +4,8 @@ A checkpoint holds the finished starts and the running one (its stage, the param
 optimizer's state after its last completed iteration and the history), plus a fingerprint of the problem (options
 that change the computation, target spectrum, model).  Resuming checks the fingerprint and continues the running
 start from that state: the optimizers are deterministic, so the result is the one of an uninterrupted run.  Files
-are written to a temporary name, flushed to disk and renamed, so a crash while writing never leaves a truncated
-checkpoint; and every file carries a BLAKE2b checksum of all its datasets and attributes, checked on reading, so a
+are written atomically (:mod:`shspec.atomic`: a temporary file, fsynced, renamed), so a crash while writing never
+leaves a truncated checkpoint; and every file carries a BLAKE2b checksum of all its datasets and attributes, checked on reading, so a
 damaged file is refused by name instead of silently changing a resumed fit.
 """
 
@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import os
 from pathlib import Path
 
 import h5py
@@ -22,6 +21,7 @@ import numpy as np
 import scipy
 
 from .._version import __version__
+from ..atomic import atomic_hdf5
 from ..errors import CheckpointError
 from .options import FitOptions, StartResult
 from .schedule import StartProgress
@@ -90,18 +90,13 @@ def _content_checksum(f: h5py.File) -> str:
 
 
 def _atomic(path: Path, write) -> None:
-    tmp = path.with_name(path.name + f".tmp{os.getpid()}")
+    """Write an HDF5 file through ``write(f)`` atomically (:func:`shspec.atomic.atomic_hdf5`), with its checksum."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with h5py.File(tmp, "w") as f:
+        with atomic_hdf5(path) as f:
             write(f)
             f.attrs["checksum"] = _content_checksum(f)
-            f.flush()
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
         raise CheckpointError(f"cannot write {path}: {exc}") from exc
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
+from ..damping import nielsen_update
 from ..errors import InvalidArgumentError, NotPositiveError
 from .energy import Evaluation, Objective
 from .options import FitOptions
@@ -165,20 +166,15 @@ class LevenbergMarquardt(_Optimizer):
                 c = scipy.linalg.cho_factor(A + self.mu * np.diag(d), check_finite=False)
                 delta = -scipy.linalg.cho_solve(c, g, check_finite=False)
             except np.linalg.LinAlgError:
-                self.mu *= self.nu
-                self.nu *= 2.0
+                self.mu, self.nu = nielsen_update(self.mu, self.nu, float("nan"))
                 continue
             predicted = -(delta @ g) - 0.5 * delta @ (A @ delta)
             ev = self._try(self.x + delta, jacobian=True)
-            if ev is not None and predicted > 0:
-                gain = (self.ev.energy - ev.energy) / predicted
-                if gain > 0:
-                    self.mu *= max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)
-                    self.nu = 2.0
-                    self._accept(self.x + delta, ev)
-                    return
-            self.mu *= self.nu
-            self.nu *= 2.0
+            gain = (self.ev.energy - ev.energy) / predicted if ev is not None and predicted > 0 else float("nan")
+            self.mu, self.nu = nielsen_update(self.mu, self.nu, gain)
+            if gain > 0:
+                self._accept(self.x + delta, ev)
+                return
         self.status = "stalled"
 
 
