@@ -21,6 +21,7 @@ __all__ = [
     "MeshError",
     "ConvergenceError",
     "CheckpointError",
+    "TopologyError",
 ]
 
 
@@ -70,3 +71,8 @@ class ConvergenceError(ShspecError, RuntimeError):
 
 class CheckpointError(ShspecError, OSError):
     """A checkpoint or result file cannot be written, read or resumed from."""
+
+
+class TopologyError(ShspecError, ValueError):
+    """A spectrum whose heat trace says, confidently, that the surface has a topology the operation cannot handle
+    (a genus-0 fit of a torus's spectrum, say)."""

@@ -22,7 +22,7 @@ def _check_suffix(path: Path) -> None:
         raise InvalidArgumentError(f"{path}: unsupported mesh format {path.suffix!r}; use one of {MESH_FORMATS}")
 
 
-def load_mesh(path, *, validate: bool = True) -> TriangleMesh:
+def load_mesh(path, *, validate: bool = True, require_genus0: bool = True) -> TriangleMesh:
     """Read a triangle mesh, keeping the stored vertex order.
 
     Parameters
@@ -31,6 +31,9 @@ def load_mesh(path, *, validate: bool = True) -> TriangleMesh:
         An ``.obj``, ``.ply``, ``.off`` or ``.stl`` file.
     validate : bool, default True
         Run :func:`~shspec.mesh.validate.validate_mesh` (closed, manifold, oriented, one component, genus 0).
+    require_genus0 : bool, default True
+        With ``validate``, also require genus 0; False accepts closed manifold meshes of any genus (for spectra and
+        their heat-trace invariants; cMCF and the fits need genus 0).
 
     Returns
     -------
@@ -62,7 +65,7 @@ def load_mesh(path, *, validate: bool = True) -> TriangleMesh:
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise MeshError(f"{path}: holds no triangles")
     mesh = TriangleMesh(np.asarray(loaded.vertices), np.asarray(loaded.faces))
-    return validate_mesh(mesh) if validate else mesh
+    return validate_mesh(mesh, genus0=require_genus0) if validate else mesh
 
 
 def save_mesh(mesh: TriangleMesh, path) -> Path:
