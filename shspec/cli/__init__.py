@@ -12,7 +12,8 @@ import sys
 
 from ..errors import ShspecError
 
-_COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment", "shspec.cli.fit", "shspec.cli.embed"]
+_COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment", "shspec.cli.fit", "shspec.cli.embed",
+                    "shspec.cli.topology"]
 
 
 def build_parser() -> argparse.ArgumentParser:

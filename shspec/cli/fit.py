@@ -51,6 +51,8 @@ def register(subparsers) -> None:
     p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.h5")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
     p.add_argument("--quiet", action="store_true", help="no progress display")
+    p.add_argument("--allow-any-genus", action="store_true",
+                   help="fit spectrum:/mesh: targets even when their heat trace says confidently genus != 0")
     p.set_defaults(func=_fit)
 
 
@@ -88,6 +90,10 @@ def _fit(args) -> int:
         raise CheckpointError(f"cannot create output directory {out}: {exc}") from exc
     target = parse_target(args.target, lmax=args.lmax, numeig=args.numeig, lmax_factor=args.lmax_factor,
                           source=args.source, subdivisions=args.subdivisions)
+    if not args.allow_any_genus and args.target.partition(":")[0] in ("spectrum", "mesh"):
+        from ..spectral.topology import check_genus_zero
+
+        check_genus_zero(target.eigenvalues, area=target.area)
     options = FitOptions(optimizer=args.optimizer, weights=args.weights, reg=args.reg, area=args.area,
                          schedule=_schedule(args.schedule, target.numeig, args.lmax_factor), starts=args.starts, seed=args.seed,
                          start_amplitude=args.amplitude, max_iter=args.max_iter, basin_hops=args.basin_hops,

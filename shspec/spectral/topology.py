@@ -332,7 +332,7 @@ def estimate_topology(eigenvalues, area: float | None = None, *, numeig: int | N
         error_budget=budget, relative_noise=noise)
 
 
-def check_genus_zero(eigenvalues, area: float | None = None, **kwargs) -> TopologyEstimate:
+def check_genus_zero(eigenvalues, area: float | None = None, **kwargs) -> TopologyEstimate | None:
     """The guard of genus-0 operations (fits): raise when the heat trace says confidently that genus ≠ 0.
 
     Parameters
@@ -342,14 +342,17 @@ def check_genus_zero(eigenvalues, area: float | None = None, **kwargs) -> Topolo
 
     Returns
     -------
-    TopologyEstimate
-        The estimate, when it does not contradict genus 0 (genus 0, or not confident).
+    TopologyEstimate or None
+        The estimate, when it does not contradict genus 0 (genus 0, or not confident); None when there are fewer
+        than :data:`MIN_EIGENVALUES` eigenvalues, too few to tell anything.
 
     Raises
     ------
     TopologyError
         When the estimate is confident and its genus is not 0; the message gives χ ± σ and the statement.
     """
+    if np.size(eigenvalues) < MIN_EIGENVALUES:
+        return None
     est = estimate_topology(eigenvalues, area, **kwargs)
     if est.confident and est.genus != 0:
         raise TopologyError(
