@@ -16,8 +16,8 @@ from shspec.mesh.implicit import euler_characteristic, ring_chain
 from shspec.mesh.io import load_mesh
 from shspec.mesh.shapes import blob
 from shspec.mesh.triangle_mesh import TriangleMesh
-from shspec.spectral import (TopologyOptions, check_genus_zero, estimate_topology, heat_trace, weyl_area,
-                             weyl_tail)
+from shspec.spectral import (TopologyOptions, check_genus_zero, estimate_topology, heat_trace, spectral_tail,
+                             top_density, weyl_area)
 
 
 def sphere_spectrum(k: int) -> np.ndarray:
@@ -62,12 +62,18 @@ def test_flat_tori(basis, known):
     assert est.area == pytest.approx(area, rel=1e-3)
 
 
-def test_heat_trace_and_weyl_closed_forms():
-    # Z of the sphere's first 3 multiplets at t: 1 + 3e^{-2t} + 5e^{-6t}; Weyl's tail A e^{-λt}/(4πt).
+def test_heat_trace_tail_and_weyl_closed_forms():
+    # Z of the sphere's first 3 multiplets: 1 + 3e^{-2t} + 5e^{-6t}; the tail of a density ρ + ρ'(λ - λ_K) above
+    # λ_K is e^{-λ_K t}(ρ/t + ρ'/t²), Weyl's (ρ = A/4π) for the unit sphere e^{-λ_K t}/t.
     t = np.array([0.1, 1.0])
     np.testing.assert_allclose(heat_trace(sphere_spectrum(9), t), 1 + 3 * np.exp(-2 * t) + 5 * np.exp(-6 * t))
-    np.testing.assert_allclose(weyl_tail(t, 4 * np.pi, 30.0), np.exp(-30 * t) / t)
-    assert weyl_area(flat_torus_spectrum([[2.0, 0.0], [0.0, 0.7]], 400)) == pytest.approx(1.4, rel=0.02)
+    np.testing.assert_allclose(spectral_tail(t, 30.0, 1.0), np.exp(-30 * t) / t)
+    np.testing.assert_allclose(spectral_tail(t, 30.0, 1.0, 0.5), np.exp(-30 * t) * (1 / t + 0.5 / t ** 2))
+    lam = flat_torus_spectrum([[2.0, 0.0], [0.0, 0.7]], 400)
+    assert weyl_area(lam) == pytest.approx(1.4, rel=0.02)
+    # N(λ) = λ + 1/2 exactly (one eigenvalue per unit): density 1, no curvature, staircase distance 1/2
+    top = top_density(np.arange(100.0))
+    assert top.density == pytest.approx(1.0) and abs(top.density_slope) < 1e-12 and top.fluctuation == 0.5
 
 
 def test_harmonic_spectrum_of_a_random_factor(rng):

@@ -2,8 +2,8 @@
 
 For a closed surface of area A and Euler characteristic χ, Z(t) = A/(4πt) + χ/6 + a₁t + O(t²) as t → 0
 (McKean–Singer; a₁ = ∫K² dA/(60π)), and Z(t) → 1 (the constants, λ₀ = 0) as t → ∞.  A spectrum known only up to
-λ_K misses Σ_{n>K} e^{−λ_n t}; with Weyl's density dN/dλ ≈ A/(4π) above λ_K that tail is
-∫_{λ_K}^∞ (A/4π) e^{−λt} dλ = A e^{−λ_K t}/(4πt) (:func:`weyl_tail`).
+λ_K misses Σ_{n>K} e^{−λ_n t}; with a density dN/dλ = ρ above λ_K that tail is ∫_{λ_K}^∞ ρ e^{−λt} dλ = ρe^{−λ_K t}/t
+(:func:`spectral_tail`; Weyl's law has ρ = A/(4π), a mesh's cotan spectrum a larger and growing one).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import InvalidArgumentError
 
-__all__ = ["as_eigenvalues", "heat_trace", "weyl_tail"]
+__all__ = ["as_eigenvalues", "heat_trace", "spectral_tail"]
 
 
 def as_eigenvalues(values, *, minimum: int = 2, zero_rtol: float = 1e-8) -> np.ndarray:
@@ -84,24 +84,31 @@ def heat_trace(eigenvalues, t) -> np.ndarray:
     return out
 
 
-def weyl_tail(t, area: float, lam_max: float) -> np.ndarray:
-    """Weyl's estimate A e^{−λ_K t}/(4πt) of Σ_{n>K} e^{−λ_n t}, the part of Z(t) above the last known λ_K.
+def spectral_tail(t, lam_max: float, density: float, density_slope: float = 0.0) -> np.ndarray:
+    """Estimate of Σ_{n>K} e^{−λ_n t}, the part of Z(t) above the last known eigenvalue λ_K.
+
+    With the counting function continued above λ_K as N(λ) ≈ N(λ_K) + ρ(λ − λ_K) + ½ρ'(λ − λ_K)², the tail is
+    ∫_{λ_K}^∞ e^{−λt} dN = e^{−λ_K t}(ρ/t + ρ'/t²).  Weyl's law is ρ = A/(4π), ρ' = 0.
 
     Parameters
     ----------
     t : float or (p,) array_like
         Times > 0.
-    area : float
-        Surface area A > 0.
     lam_max : float
         The largest eigenvalue known, λ_K > 0.
+    density : float
+        dN/dλ at λ_K (area units), > 0.
+    density_slope : float
+        d²N/dλ² at λ_K.
 
     Returns
     -------
     (p,) ndarray
     """
     t = _times(t)
-    area, lam_max = float(area), float(lam_max)
-    if not (np.isfinite(area) and area > 0 and np.isfinite(lam_max) and lam_max > 0):
-        raise InvalidArgumentError(f"area and lam_max must be finite and positive, got {area}, {lam_max}")
-    return area * np.exp(-lam_max * t) / (4 * np.pi * t)
+    lam_max, density, density_slope = float(lam_max), float(density), float(density_slope)
+    if not (np.isfinite(lam_max) and lam_max > 0 and np.isfinite(density) and density > 0
+            and np.isfinite(density_slope)):
+        raise InvalidArgumentError(f"need finite lam_max > 0, density > 0 and density_slope, got {lam_max}, "
+                                   f"{density}, {density_slope}")
+    return np.exp(-lam_max * t) * (density / t + density_slope / t ** 2)

@@ -3,7 +3,8 @@
 Method
 ------
 The heat trace of a closed surface is Z(t) = A/(4πt) + χ/6 + a₁t + a₂t² + … as t → 0.  From K eigenvalues,
-Z_K(t) = Σ_{n<K} e^{−λ_n t} plus Weyl's tail A e^{−λ_K t}/(4πt) (:mod:`shspec.spectral.heat`) is fitted by least
+Z_K(t) = Σ_{n<K} e^{−λ_n t} plus the tail above λ_K (:func:`~shspec.spectral.heat.spectral_tail`, with the density
+of the spectrum's own top quarter, :func:`~shspec.spectral.weyl.top_density`) is fitted by least
 squares on 40 log-spaced times of a window [t₀, t₁] to
 
     A/(4πt) + χ/6 + Σ_{p=1}^{P} a_p t^p + Σ_{q=2}^{Q} b_q t^{−q}
@@ -12,8 +13,8 @@ with the area A known or fitted.  The negative powers are the error of a discret
 finite elements (cotan) shift eigenvalues by λ_h = λ(1 + αh²λ + βh⁴λ² + …), which changes Z by −αh²t Z''(t) + … =
 −2αh²A/(4πt²) + O(t^{−3}) and leaves the 1/t and constant terms alone.  Exact spectra get b_q ≈ 0.
 
-The window.  Its lower end is set by the truncation: Weyl's tail is wrong by at most about 2D e^{−λ_K t}, where
-D is the largest distance of the counting function from Weyl's line near λ_K (:mod:`shspec.spectral.weyl`), so
+The window.  Its lower end is set by the truncation: the tail is wrong by at most about 2D e^{−λ_K t}, where
+D is the largest distance of the counting function from its smooth fit near λ_K (:mod:`shspec.spectral.weyl`), so
 t₀ = u₀/λ_K with u₀ = ln(2D/ε) keeps that error below ``tail_tolerance`` ε.  Its upper end is set by the
 asymptotic series, whose range depends on the curvature, unknown beforehand: windows of several widths t₁/t₀ and
 starts (multiples of u₀) are all fitted.  A model (P, Q) that is right gives the same χ in every window, one that
@@ -26,7 +27,7 @@ relative eigenvalue noise ε through the least squares (var Z(t_i, t_j) = ε² �
 and the floor (0.02) is the scatter the exact round sphere shows between windows.
 
 Genus.  For a connected orientable surface g = (2 − χ)/2.  The nearest integer g ≥ 0 is reported; the estimate is
-``confident`` when (a) it is within ``max_offset`` (¼) of that integer and within 2σ_g of it, (b) every other
+``confident`` when (a) it is within ``max_offset`` (¼) of that integer and within 3σ_g of it, (b) every other
 integer is at least ``confidence`` (3) σ_g away, and (c) the spectrum has exactly one zero eigenvalue (one
 component).  Surfaces with features finer than the heat kernel's reach √t₀ (thin ears, legs, tubes) are outside
 the asymptotic regime at the available t: their χ drifts with the window and the estimate says so by not being
@@ -43,8 +44,8 @@ import numpy as np
 
 from ..checks import check_int
 from ..errors import InvalidArgumentError, TopologyError
-from .heat import as_eigenvalues, heat_trace, weyl_tail
-from .weyl import weyl_fit
+from .heat import as_eigenvalues, heat_trace, spectral_tail
+from .weyl import top_density, weyl_fit
 
 __all__ = ["TopologyOptions", "TopologyEstimate", "estimate_topology", "check_genus_zero", "MIN_EIGENVALUES"]
 
@@ -84,6 +85,8 @@ class TopologyOptions:
         Every other genus must be at least this many σ away.
     max_offset : float
         |g estimate − g| at most this for a confident genus.
+    consistency : float
+        … and at most this many σ_g.
     floor : float
         Smallest σ_χ reported.
     zero_rtol : float
@@ -98,6 +101,7 @@ class TopologyOptions:
     samples: int = 40
     confidence: float = 3.0
     max_offset: float = 0.25
+    consistency: float = 3.0
     floor: float = 0.02
     zero_rtol: float = 1e-6
 
@@ -114,7 +118,7 @@ class TopologyOptions:
             raise InvalidArgumentError("positive_powers and negative_powers must be non-empty; a negative power "
                                        "of 1 is the area term, so negative_powers holds 0 or values >= 2")
         check_int(self.samples, "samples", minimum=8, maximum=10_000)
-        for name in ("confidence", "max_offset", "floor"):
+        for name in ("confidence", "max_offset", "consistency", "floor"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise InvalidArgumentError(f"{name} must be finite and positive, got {value}")
@@ -201,15 +205,17 @@ def _design(t, area_known: bool, p: int, q: int) -> np.ndarray:
     return np.stack(cols, axis=1)
 
 
-def _fit_windows(lam, area, tail_area, u0, opt, p, q, noise):
-    """χ, A, coefficients and χ's noise σ in every window for the model (p, q)."""
-    lk = lam[-1]
+def _fit_windows(lam, area, opt, p, q, noise):
+    """χ, A, coefficients, χ's noise σ and the window ends, in every window, for the model (p, q)."""
+    top = top_density(lam)
+    lk = top.lam_max
+    u0 = math.log(2.0 * top.fluctuation / opt.tail_tolerance)
     known = area is not None
     out = []
     for start, ratio in itertools.product(opt.window_starts, opt.window_ratios):
         t0 = start * u0 / lk
         t = np.geomspace(t0, ratio * t0, opt.samples)
-        y = heat_trace(lam, t) + weyl_tail(t, tail_area, lk)
+        y = heat_trace(lam, t) + spectral_tail(t, lk, top.density, top.density_slope)
         if known:
             y = y - area / (4 * np.pi * t)
         X = _design(t, known, p, q)
@@ -227,20 +233,17 @@ def _fit_windows(lam, area, tail_area, u0, opt, p, q, noise):
 
 
 def _estimate_chi(lam, area, opt, noise):
-    """The chosen model's per-window fits, its index and the derived u₀."""
-    fitw = weyl_fit(lam)
-    tail_area = area if area is not None else fitw.area
-    u0 = math.log(2.0 * fitw.fluctuation / opt.tail_tolerance)
+    """The chosen model (window half-range, median χ, P, Q, per-window fits) and the runner-up's disagreement."""
     models = []
     for p, q in itertools.product(opt.positive_powers, opt.negative_powers):
-        fits = _fit_windows(lam, area, tail_area, u0, opt, p, q, noise)
+        fits = _fit_windows(lam, area, opt, p, q, noise)
         chis = np.array([f[0] for f in fits])
         models.append((0.5 * float(chis.max() - chis.min()), float(np.median(chis)), p, q, fits))
     models.sort(key=lambda m: m[0])
     best = models[0]
     # The runner-up is nearly as plausible: half the disagreement of the two most stable models is part of σ.
     model_spread = 0.5 * abs(best[1] - models[1][1]) if len(models) > 1 else 0.0
-    return best, model_spread, fitw
+    return best, model_spread
 
 
 def estimate_topology(eigenvalues, area: float | None = None, *, numeig: int | None = None,
@@ -284,14 +287,13 @@ def estimate_topology(eigenvalues, area: float | None = None, *, numeig: int | N
     if not (np.isfinite(noise) and 0 <= noise < 1):
         raise InvalidArgumentError(f"relative_noise must be in [0, 1), got {relative_noise}")
 
-    (spread, _, p, q, fits), model_spread, fitw = _estimate_chi(lam, area, opt, noise)
+    (spread, _, p, q, fits), model_spread = _estimate_chi(lam, area, opt, noise)
     chis = np.array([f[0] for f in fits])
     chi = float(np.median(chis))
     half = lam[:max(MIN_EIGENVALUES, lam.size // 2)]
     drift = 0.0
     if half.size < lam.size:
-        half_fits = _fit_windows(half, area, area if area is not None else weyl_fit(half).area,
-                                 math.log(2.0 * weyl_fit(half).fluctuation / opt.tail_tolerance), opt, p, q, noise)
+        half_fits = _fit_windows(half, area, opt, p, q, noise)
         drift = abs(chi - float(np.median([f[0] for f in half_fits])))
     sigma_noise = float(np.median([f[3] for f in fits]))
     budget = {"window": spread, "model": model_spread, "drift": 0.5 * drift, "noise": sigma_noise,
@@ -312,7 +314,7 @@ def estimate_topology(eigenvalues, area: float | None = None, *, numeig: int | N
     reasons = []
     if components != 1:
         reasons.append(f"{components} zero eigenvalues (components); the genus formula needs one")
-    if offset > opt.max_offset or offset > 2 * g_sigma:
+    if offset > opt.max_offset or offset > opt.consistency * g_sigma:
         reasons.append(f"the estimate {g_est:.2f} is {offset:.2f} from the nearest genus, the asymptotic series "
                        "does not hold at these t (more eigenvalues needed)")
     if separation < opt.confidence:
@@ -326,7 +328,7 @@ def estimate_topology(eigenvalues, area: float | None = None, *, numeig: int | N
     return TopologyEstimate(
         euler_characteristic=chi, euler_characteristic_error=sigma, genus=genus, genus_estimate=g_est,
         genus_error=g_sigma, separation=float(separation), confident=confident, statement=statement,
-        area=a_est, area_error=a_err, area_known=area is not None, weyl_area=fitw.area,
+        area=a_est, area_error=a_err, area_known=area is not None, weyl_area=weyl_fit(lam).area,
         window=(min(f[4] for f in fits), max(f[5] for f in fits)), numeig=int(lam.size), components=components,
         positive_powers=p, negative_powers=q, coefficients={k: float(v) for k, v in zip(names, coefs)},
         error_budget=budget, relative_noise=noise)

@@ -1,10 +1,13 @@
 """Weyl's law N(λ) ≈ Aλ/(4π) + c: the area from the counting function, and how far the spectrum strays from it.
 
 The counting function of the first K eigenvalues is a staircase; at λ_n it is n + ½ (the midpoint of the jump, n
-counted from 0).  A least-squares line through those points gives the area (slope·4π).  The largest distance of
-the staircase from the line near λ_K, D, bounds what Weyl's density gets wrong about the spectrum above λ_K:
-the error of :func:`~shspec.spectral.heat.weyl_tail` is at most about 2D·e^{−λ_K t}.  On the round sphere D grows
-like √λ (multiplicities 2l + 1), on generic surfaces it stays of order one.
+counted from 0).  A least-squares line through those points gives the area (slope·4π): :func:`weyl_fit`.  On a
+mesh that line is bent by the discretization (cotan eigenvalues fall below the smooth ones, more so the higher
+they are), so what continues the spectrum above λ_K is read locally instead: :func:`top_density` fits a parabola
+to the top quarter of the staircase, whose slope and curvature at λ_K feed
+:func:`~shspec.spectral.heat.spectral_tail`, and whose largest distance D from the staircase there bounds that
+tail's error by about 2D·e^{−λ_K t}.  On the round sphere D grows like √λ (multiplicities 2l + 1), on generic
+surfaces it stays of order one.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import numpy as np
 from ..errors import InvalidArgumentError
 from .heat import as_eigenvalues
 
-__all__ = ["WeylFit", "weyl_fit", "weyl_area"]
+__all__ = ["WeylFit", "weyl_fit", "weyl_area", "TopDensity", "top_density"]
 
 
 @dataclass(frozen=True)
@@ -29,13 +32,10 @@ class WeylFit:
         A (area units).
     offset : float
         c (dimensionless).
-    fluctuation : float
-        D = max |N(λ_n) − Aλ_n/(4π) − c| over the upper half of the spectrum (a count, ≥ ½).
     """
 
     area: float
     offset: float
-    fluctuation: float
 
 
 def weyl_fit(eigenvalues) -> WeylFit:
@@ -52,10 +52,53 @@ def weyl_fit(eigenvalues) -> WeylFit:
     (area, offset), *_ = np.linalg.lstsq(design, n[1:], rcond=None)
     if not area > 0:
         raise InvalidArgumentError("the spectrum does not grow like Weyl's law; cannot estimate the area")
-    resid = n - (area * lam / (4 * np.pi) + offset)
-    return WeylFit(float(area), float(offset), float(max(0.5, np.abs(resid[lam.size // 2:]).max())))
+    return WeylFit(float(area), float(offset))
 
 
 def weyl_area(eigenvalues) -> float:
     """Area A from Weyl's law fitted to the counting function of a spectrum (see :func:`weyl_fit`)."""
     return weyl_fit(eigenvalues).area
+
+
+@dataclass(frozen=True)
+class TopDensity:
+    """The counting function near the largest known eigenvalue λ_K (module notes).
+
+    Attributes
+    ----------
+    lam_max : float
+        λ_K.
+    density, density_slope : float
+        dN/dλ and d²N/dλ² at λ_K (area units and their square).
+    fluctuation : float
+        D, the largest distance of the staircase from the parabola over the top quarter (a count, ≥ ½).
+    """
+
+    lam_max: float
+    density: float
+    density_slope: float
+    fluctuation: float
+
+
+def top_density(eigenvalues, fraction: float = 0.25) -> TopDensity:
+    """Fit N(λ_n) = n + ½ by a parabola in λ − λ_K over the top ``fraction`` (at least 8 eigenvalues).
+
+    Raises
+    ------
+    InvalidArgumentError
+        If fewer than 8 eigenvalues are given, ``fraction`` is not in (0, 1], or the density at λ_K is not positive.
+    """
+    lam = as_eigenvalues(eigenvalues, minimum=8)
+    if not 0 < fraction <= 1:
+        raise InvalidArgumentError(f"fraction must be in (0, 1], got {fraction}")
+    m = max(8, int(fraction * lam.size))
+    x = (lam[-m:] - lam[-1]) / lam[-1]
+    n = np.arange(lam.size - m, lam.size) + 0.5
+    # Degenerate groups make few distinct abscissae; lstsq's minimum-norm answer then drops the curvature.
+    design = np.stack([np.ones_like(x), x, x * x], axis=1)
+    coef = np.linalg.lstsq(design, n, rcond=1e-10)[0]
+    slope, curvature = coef[1] / lam[-1], coef[2] / lam[-1] ** 2
+    if not slope > 0:
+        raise InvalidArgumentError("the counting function does not grow at the top of the spectrum")
+    resid = n - design @ coef
+    return TopDensity(float(lam[-1]), float(slope), float(2 * curvature), float(max(0.5, np.abs(resid).max())))
