@@ -44,9 +44,9 @@ def flat_torus_spectrum(basis, k: int) -> np.ndarray:
 def test_round_sphere(k, area):
     est = estimate_topology(sphere_spectrum(k), area)
     assert est.confident and est.genus == 0 and est.components == 1
-    assert abs(est.euler_characteristic - 2) < 0.02
+    assert abs(est.euler_characteristic - 2) < 0.05
     assert abs(est.euler_characteristic - 2) < 2 * est.euler_characteristic_error
-    assert est.area == pytest.approx(4 * np.pi, rel=1e-3)
+    assert est.area == pytest.approx(4 * np.pi, rel=2e-3)
     assert est.statement.startswith("genus 0; the nearest other integer is")
 
 
@@ -55,7 +55,7 @@ def test_round_sphere(k, area):
 @pytest.mark.parametrize("known", [False, True])
 def test_flat_tori(basis, known):
     area = abs(np.linalg.det(basis))
-    est = estimate_topology(flat_torus_spectrum(basis, 400), area if known else None)
+    est = estimate_topology(flat_torus_spectrum(basis, 1000), area if known else None)
     assert est.confident and est.genus == 1
     # The long thin one (shortest loop 0.7) has heat-trace corrections ~ e^{-0.49/4t} inside the wider windows.
     assert abs(est.euler_characteristic) < 2 * est.euler_characteristic_error

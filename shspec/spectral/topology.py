@@ -18,13 +18,14 @@ D is the largest distance of the counting function from its smooth fit near λ_K
 t₀ = u₀/λ_K with u₀ = ln(2D/ε) keeps that error below ``tail_tolerance`` ε.  Its upper end is set by the
 asymptotic series, whose range depends on the curvature, unknown beforehand: windows of several widths t₁/t₀ and
 starts (multiples of u₀) are all fitted.  A model (P, Q) that is right gives the same χ in every window, one that
-misses a term drifts with the window, so the model whose χ varies least over the windows is chosen, and its
-half-range over the windows is the first part of the uncertainty.
+misses a term drifts with the window, so the model whose χ varies least over the windows is chosen (P ∈ {1, 2},
+Q ∈ {2, 3} by default), and its half-range over the windows is the first part of the uncertainty.
 
-Uncertainty.  σ_χ² = (window half-range)² + (drift/2)² + (noise)² + floor²: the drift is the change of χ when only
-the first K/2 eigenvalues are used (a converged estimate does not move), the noise part propagates a given
-relative eigenvalue noise ε through the least squares (var Z(t_i, t_j) = ε² Σ_n λ_n² t_i t_j e^{−λ_n(t_i + t_j)}),
-and the floor (0.02) is the scatter the exact round sphere shows between windows.
+Uncertainty.  σ_χ² = (window half-range)² + (model)² + (drift/2)² + (noise)² + floor²: the model part is half
+the difference between the chosen model's χ and the runner-up's (the next most stable), the drift the change of χ
+when only the first K/2 eigenvalues are used (a converged estimate does not move), the noise part propagates a
+given relative eigenvalue noise ε through the least squares (var Z(t_i, t_j) = ε² Σ_n λ_n² t_i t_j
+e^{−λ_n(t_i + t_j)}), and the floor (0.02) is the scatter the exact round sphere shows between windows.
 
 Genus.  For a connected orientable surface g = (2 − χ)/2.  The nearest integer g ≥ 0 is reported; the estimate is
 ``confident`` when (a) it is within ``max_offset`` (¼) of that integer and within 3σ_g of it, (b) every other
@@ -78,7 +79,10 @@ class TopologyOptions:
     positive_powers : tuple of int
         Candidate P: highest power t^P of the curvature series fitted (P ≥ 1).
     negative_powers : tuple of int
-        Candidate Q: discretization terms t^{−2} … t^{−Q} fitted (0: none; else ≥ 2).
+        Candidate Q: discretization terms t^{−2} … t^{−Q} fitted (0: none; else ≥ 2).  The default leaves out 0:
+        every computed spectrum (cotan, Galerkin) has them, and a model without them, fitted with the area free,
+        hides them in the area and can be stable and wrong at once (it read a genus-3 chain of rings as genus 4
+        with 500 eigenvalues in ``benchmarks/bench_topology.py``).  Exact closed-form spectra lose little.
     samples : int
         Times per window (log-spaced).
     confidence : float
@@ -97,7 +101,7 @@ class TopologyOptions:
     window_starts: tuple = (1.0, 1.25, 1.5)
     window_ratios: tuple = (4.0, 6.0, 8.0)
     positive_powers: tuple = (1, 2)
-    negative_powers: tuple = (0, 2, 3)
+    negative_powers: tuple = (2, 3)
     samples: int = 40
     confidence: float = 3.0
     max_offset: float = 0.25
@@ -315,8 +319,9 @@ def estimate_topology(eigenvalues, area: float | None = None, *, numeig: int | N
     if components != 1:
         reasons.append(f"{components} zero eigenvalues (components); the genus formula needs one")
     if offset > opt.max_offset or offset > opt.consistency * g_sigma:
-        reasons.append(f"the estimate {g_est:.2f} is {offset:.2f} from the nearest genus, the asymptotic series "
-                       "does not hold at these t (more eigenvalues needed)")
+        where = (f"χ = {chi:.2f} is above 2, which no connected surface has" if g_est < -opt.max_offset else
+                 f"the estimate {g_est:.2f} is {offset:.2f} from the nearest genus")
+        reasons.append(f"{where}: the asymptotic series does not hold at these t (more eigenvalues needed)")
     if separation < opt.confidence:
         reasons.append(f"the nearest other integer is only {separation:.1f}σ away")
     confident = not reasons

@@ -83,22 +83,29 @@ class TopDensity:
 def top_density(eigenvalues, fraction: float = 0.25) -> TopDensity:
     """Fit N(λ_n) = n + ½ by a parabola in λ − λ_K over the top ``fraction`` (at least 8 eigenvalues).
 
+    The range grows (doubling) until it holds at least four distinct eigenvalues, which highly degenerate spectra
+    (the round sphere's multiplets) need; if the parabola still does not grow at λ_K, Weyl's line over the whole
+    spectrum (:func:`weyl_fit`) is used, with no curvature.
+
     Raises
     ------
     InvalidArgumentError
-        If fewer than 8 eigenvalues are given, ``fraction`` is not in (0, 1], or the density at λ_K is not positive.
+        If fewer than 8 eigenvalues are given, ``fraction`` is not in (0, 1], or the spectrum does not grow.
     """
     lam = as_eigenvalues(eigenvalues, minimum=8)
     if not 0 < fraction <= 1:
         raise InvalidArgumentError(f"fraction must be in (0, 1], got {fraction}")
     m = max(8, int(fraction * lam.size))
+    while m < lam.size and np.unique(np.round(lam[-m:] / lam[-1], 12)).size < 4:
+        m = min(lam.size, 2 * m)
     x = (lam[-m:] - lam[-1]) / lam[-1]
     n = np.arange(lam.size - m, lam.size) + 0.5
-    # Degenerate groups make few distinct abscissae; lstsq's minimum-norm answer then drops the curvature.
     design = np.stack([np.ones_like(x), x, x * x], axis=1)
     coef = np.linalg.lstsq(design, n, rcond=1e-10)[0]
     slope, curvature = coef[1] / lam[-1], coef[2] / lam[-1] ** 2
-    if not slope > 0:
-        raise InvalidArgumentError("the counting function does not grow at the top of the spectrum")
     resid = n - design @ coef
-    return TopDensity(float(lam[-1]), float(slope), float(2 * curvature), float(max(0.5, np.abs(resid).max())))
+    if not slope > 0:
+        weyl = weyl_fit(lam)
+        slope, curvature = weyl.area / (4 * np.pi), 0.0
+        resid = np.arange(lam.size) + 0.5 - (slope * lam + weyl.offset)
+    return TopDensity(float(lam[-1]), float(slope), float(2 * curvature), float(max(0.5, np.abs(resid[-m:]).max())))
