@@ -2,7 +2,8 @@
 
 :func:`mesh_job` is the unit of work (load, validate as a closed manifold of any genus, cotan spectrum, and on
 request the heat kernel signature and the heat-trace topology); it returns arrays instead of writing files, so that
-workers of a remote Dask cluster need no access to the output folder.  :func:`run_batch` submits one job per mesh
+workers of a remote Dask cluster need no access to the output folder (they do read the mesh files: give paths
+they can see).  :func:`run_batch` submits one job per mesh
 to an executor (:func:`shspec.parallel.make_executor`), writes each mesh's files as its result arrives (tqdm
 progress), and one CSV table with a row per mesh in the order given.
 """

@@ -153,7 +153,7 @@ class TopologyEstimate:
     statement : str
         E.g. "genus 1; the nearest other integer is 4.2σ away".
     area, area_error : float
-        A and its uncertainty (the given area and 0 when it was known).
+        A and its half-range over the windows (the given area and 0 when it was known).
     area_known : bool
     weyl_area : float
         The area from the counting function alone (:func:`~shspec.spectral.weyl.weyl_fit`), for comparison.
