@@ -25,6 +25,7 @@ __all__ = [
     "ResourceLimitError",
     "ShspecWarning",
     "TruncationWarning",
+    "TopologyError",
 ]
 
 
@@ -88,3 +89,6 @@ class ShspecWarning(UserWarning):
 
 class TruncationWarning(ShspecWarning):
     """A spectrum whose estimated truncation error (band limit of ρ or of the basis) exceeds the tolerance."""
+class TopologyError(ShspecError, ValueError):
+    """A spectrum whose heat trace says, confidently, that the surface has a topology the operation cannot handle
+    (a genus-0 fit of a torus's spectrum, say)."""

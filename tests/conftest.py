@@ -21,6 +21,14 @@ def cache_dir() -> Path:
     return Path(_CACHE)
 
 
+@pytest.fixture(scope="session")
+def shared_meshes() -> Path:
+    """The shared genus-0 test meshes (bunny, spot, blub) beside the repository; skips the test when absent."""
+    if not SHARED_MESHES.is_dir():
+        pytest.skip(f"the shared test meshes are not at {SHARED_MESHES}")
+    return SHARED_MESHES
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261122)

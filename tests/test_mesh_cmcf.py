@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,8 +17,6 @@ from shspec.mesh.io import load_mesh
 from shspec.mesh.shapes import icosphere, star_surface
 from shspec.mesh.triangle_mesh import TriangleMesh
 
-MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
-needs_meshes = pytest.mark.skipif(not MESHES.is_dir(), reason=f"test meshes not found at {MESHES}")
 
 
 def exact_axisymmetric_map(l, p, npts=100001):
@@ -89,10 +86,9 @@ def test_sphere_stays_a_sphere():
     assert res.distortion_max < 1.02
 
 
-@needs_meshes
 @pytest.mark.parametrize("name", ["bunny_600", "spot_600"])
-def test_real_meshes(name):
-    mesh = load_mesh(MESHES / f"{name}.obj")
+def test_real_meshes(shared_meshes, name):
+    mesh = load_mesh(shared_meshes / f"{name}.obj")
     res = cmcf(mesh)
     assert res.success and res.flips == 0
     # As round as lapy's flow with its defaults (30 steps here), measured the same way: both sit on the flow's

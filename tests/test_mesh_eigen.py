@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,8 +14,6 @@ from shspec.mesh.eigen import EigenOptions, eigenpairs, mesh_spectrum
 from shspec.mesh.io import load_mesh
 from shspec.mesh.shapes import blob, icosphere
 
-MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
-needs_meshes = pytest.mark.skipif(not MESHES.is_dir(), reason=f"test meshes not found at {MESHES}")
 lapy = pytest.importorskip("lapy")
 
 
@@ -67,10 +64,9 @@ def test_agrees_with_lapy_on_icosphere():
     np.testing.assert_allclose(ours.eigenvalues, ref, rtol=0, atol=1e-8)
 
 
-@needs_meshes
 @pytest.mark.parametrize("mass", ["lumped", "consistent"])
-def test_agrees_with_lapy_on_bunny(mass):
-    mesh = load_mesh(MESHES / "bunny_1200.obj")
+def test_agrees_with_lapy_on_bunny(shared_meshes, mass):
+    mesh = load_mesh(shared_meshes / "bunny_1200.obj")
     ours = mesh_spectrum(mesh, 30, mass, whole_multiplets=False)
     ref = np.sort(_lapy(mesh, mass == "lumped").eigs(k=30)[0])
     np.testing.assert_allclose(ours.eigenvalues, ref, rtol=1e-10, atol=1e-9)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,8 +13,6 @@ from shspec.mesh.shapes import icosphere
 from shspec.mesh.triangle_mesh import TriangleMesh
 from shspec.mesh.validate import validate_mesh
 
-MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
-needs_meshes = pytest.mark.skipif(not MESHES.is_dir(), reason=f"test meshes not found at {MESHES}")
 
 
 @pytest.fixture
@@ -23,18 +20,16 @@ def ico():
     return icosphere(2)
 
 
-@needs_meshes
 @pytest.mark.parametrize("name", ["bunny_600", "spot_600", "blub_600", "bunny_1200"])
-def test_shared_meshes_load_and_validate(name):
-    mesh = load_mesh(MESHES / f"{name}.obj")
+def test_shared_meshes_load_and_validate(shared_meshes, name):
+    mesh = load_mesh(shared_meshes / f"{name}.obj")
     assert mesh.nfaces == 2 * mesh.nvertices - 4
     assert mesh.signed_volume() > 0
 
 
-@needs_meshes
-def test_load_keeps_vertex_order():
-    mesh = load_mesh(MESHES / "spot_600.obj")
-    first = next(line for line in (MESHES / "spot_600.obj").read_text().splitlines() if line.startswith("v "))
+def test_load_keeps_vertex_order(shared_meshes):
+    mesh = load_mesh(shared_meshes / "spot_600.obj")
+    first = next(line for line in (shared_meshes / "spot_600.obj").read_text().splitlines() if line.startswith("v "))
     np.testing.assert_array_equal(mesh.vertices[0], np.array(first.split()[1:], dtype=float))
 
 

@@ -14,7 +14,7 @@ from .. import __version__
 from ..errors import ShspecError
 
 _COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment", "shspec.cli.fit", "shspec.cli.embed",
-                    "shspec.cli.identifiability", "shspec.cli.precompute"]
+                    "shspec.cli.identifiability", "shspec.cli.precompute", "shspec.cli.topology"]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -21,6 +21,7 @@ from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions, pa
 from ..inverse.schedule import degree_ramp, numeig_ramp
 from ..targets import TARGET_SOURCES, Target, parse_target
 from ..mesh.model import MeshModel
+from ..spectral.topology import check_genus_zero
 from ..sphere.harmonics import as_coefficients
 
 
@@ -121,6 +122,8 @@ def register(subparsers) -> None:
     p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.h5")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
     p.add_argument("--quiet", action="store_true", help="no progress display")
+    p.add_argument("--allow-any-genus", action="store_true",
+                   help="fit spectrum:/mesh: targets even when their heat trace says confidently genus != 0")
     p.set_defaults(func=_fit)
 
 
@@ -142,6 +145,8 @@ def _fit(args) -> int:
         raise OutputError(f"--out {out} is a file; give a directory")
     target = parse_target(args.target, lmax=args.lmax, numeig=args.numeig, lmax_factor=args.lmax_factor,
                           source=args.source, subdivisions=args.subdivisions)
+    if not args.allow_any_genus and args.target.partition(":")[0] in ("spectrum", "mesh"):
+        check_genus_zero(target.eigenvalues, area=target.area)
     model = MODELS[args.model](args, target)
     options = FitOptions(optimizer=args.optimizer, weights=args.weights, reg=args.reg, area=args.area,
                          schedule=_schedule(args.schedule, target.numeig, args.lmax_factor), starts=args.starts,

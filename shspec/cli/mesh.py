@@ -1,4 +1,4 @@
-"""Mesh subcommands: ``shspec mesh-spectrum`` and ``shspec cmcf``."""
+"""Mesh subcommands: ``shspec mesh-spectrum`` (one mesh, or many with ``--out``) and ``shspec cmcf``."""
 
 from __future__ import annotations
 
@@ -7,22 +7,37 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import InvalidArgumentError
 from ..mesh.cmcf import CMCFOptions, cmcf
 from ..mesh.cotan import MASS_KINDS
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.io import load_mesh, save_mesh
+from ..parallel import make_executor
+from ..spectral.batch import run_batch
 
 
 def register(subparsers) -> None:
     """Add ``mesh-spectrum`` and ``cmcf`` to the shspec command line."""
-    p = subparsers.add_parser("mesh-spectrum", help="first K cotan Laplace-Beltrami eigenvalues of a mesh",
-                              description="Validate a closed genus-0 triangle mesh and print its first K cotan "
-                              "eigenvalues (ascending, 1/area in the mesh's unit). A degenerate group cut at K is "
-                              "completed, so more than K values may be printed.")
-    p.add_argument("path", type=Path, help="mesh file (.obj, .ply, .off, .stl)")
+    p = subparsers.add_parser("mesh-spectrum", help="first K cotan Laplace-Beltrami eigenvalues of meshes",
+                              description="Validate closed manifold triangle meshes (any genus) and compute their "
+                              "first K cotan eigenvalues (ascending, 1/area in the mesh's unit). A degenerate group "
+                              "cut at K is completed, so more than K values may come out. One mesh without --out: "
+                              "print them. With --out DIR: any number of meshes (files or folders), one "
+                              "NAME.eigenvalues.txt per mesh (one value per line, readable by 'shspec fit --target "
+                              "spectrum:FILE' and numpy.loadtxt) and a table spectra.csv, with progress.")
+    p.add_argument("paths", type=Path, nargs="+", metavar="PATH", help="mesh files (.obj, .ply, .off, .stl) or "
+                   "folders of them")
     p.add_argument("--numeig", type=int, default=20, metavar="K", help="number of eigenvalues (default 20)")
     p.add_argument("--mass", choices=MASS_KINDS, default="lumped", help="mass matrix (default lumped)")
-    p.add_argument("--json", action="store_true", help="print one JSON object with key 'eigenvalues'")
+    p.add_argument("--json", action="store_true", help="print one JSON object with key 'eigenvalues' (one mesh)")
+    p.add_argument("--out", type=Path, metavar="DIR", help="write files per mesh and spectra.csv to DIR (created)")
+    p.add_argument("--descriptors", action="store_true", help="with --out: also NAME.shapedna.txt (eigenvalue * "
+                   "area), NAME.heat_trace.txt (t, Z(t)) and NAME.hks.txt (heat kernel signature per vertex)")
+    p.add_argument("--topology", action="store_true", help="with --out: also NAME.topology.json (Euler "
+                   "characteristic and genus from the heat trace) and its columns in the table")
+    p.add_argument("--workers", type=int, metavar="N", help="with --out: N worker processes, one BLAS thread each")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="with --out: run on a Dask distributed cluster")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_mesh_spectrum)
 
     q = subparsers.add_parser("cmcf", help="conformalized mean-curvature flow of a mesh to the unit sphere",
@@ -42,10 +57,19 @@ def register(subparsers) -> None:
 
 
 def _mesh_spectrum(args) -> int:
-    mesh = load_mesh(args.path)
+    if args.out is not None:
+        with make_executor(args.workers, args.scheduler) as executor:
+            run_batch(args.paths, args.out, args.numeig, mass=args.mass, descriptors=args.descriptors,
+                      topology=args.topology, executor=executor, progress=not args.quiet)
+        return 0
+    if len(args.paths) != 1 or args.descriptors or args.topology or args.workers or args.scheduler:
+        raise InvalidArgumentError("several meshes, --descriptors, --topology, --workers and --scheduler need "
+                                   "--out DIR")
+    path = args.paths[0]
+    mesh = load_mesh(path, require_genus0=False)
     spec = mesh_spectrum(mesh, args.numeig, args.mass)
     if args.json:
-        print(json.dumps({"path": str(args.path), "mass": args.mass, "nvertices": mesh.nvertices,
+        print(json.dumps({"path": str(path), "mass": args.mass, "nvertices": mesh.nvertices,
                           "eigenvalues": spec.eigenvalues.tolist()}))
     else:
         for i, lam in enumerate(spec.eigenvalues):

@@ -9,6 +9,7 @@ from .bridge import HarmonicFit, fit_harmonic
 from .cmcf import CMCFOptions, CMCFResult, cmcf, roundness
 from .cotan import cotan_stiffness, mass_matrix, vertex_areas
 from .eigen import EigenOptions, eigenpairs, mesh_spectrum
+from .implicit import euler_characteristic, implicit_surface, ring_chain
 from .io import load_mesh, save_mesh
 from .mobius import MeshCentering, center_mesh
 from .model import MeshModel
@@ -19,7 +20,8 @@ from .validate import validate_mesh
 
 __all__ = [
     "TriangleMesh", "load_mesh", "save_mesh", "validate_mesh",
-    "icosphere", "star_surface", "blob", "BLOB_COEFFICIENTS",
+    "icosphere", "star_surface", "blob", "BLOB_COEFFICIENTS", "implicit_surface", "ring_chain",
+    "euler_characteristic",
     "cotan_stiffness", "mass_matrix", "vertex_areas",
     "EigenOptions", "eigenpairs", "mesh_spectrum", "MeshModel",
     "CMCFOptions", "CMCFResult", "cmcf", "roundness",

@@ -22,7 +22,8 @@ def _check_suffix(path: Path) -> None:
         raise InvalidArgumentError(f"{path}: unsupported mesh format {path.suffix!r}; use one of {MESH_FORMATS}")
 
 
-def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None) -> TriangleMesh:
+def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None,
+              require_genus0: bool = True) -> TriangleMesh:
     """Read a triangle mesh, keeping the stored vertex order.
 
     Parameters
@@ -35,6 +36,9 @@ def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None
         Merge vertices at identical positions (weld a "vertex soup" whose faces do not share vertices).  None
         (default): only for STL, which cannot share vertices.  When validation fails and the file has duplicate
         positions, the error says so and suggests this option.
+    require_genus0 : bool, default True
+        With ``validate``, also require genus 0; False accepts closed manifold meshes of any genus (for spectra and
+        their heat-trace invariants; cMCF and the fits need genus 0).
 
     Returns
     -------
@@ -69,7 +73,7 @@ def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None
     if not validate:
         return mesh
     try:
-        return validate_mesh(mesh)
+        return validate_mesh(mesh, genus0=require_genus0)
     except MeshError as exc:
         duplicates = mesh.nvertices - np.unique(mesh.vertices, axis=0).shape[0]
         if duplicates and not process:

@@ -1,9 +1,12 @@
-"""Checks that a triangle mesh is a closed, oriented, manifold, connected genus-0 surface.
+"""Checks that a triangle mesh is a closed, oriented, manifold, connected surface, of genus 0 unless told otherwise.
 
 Every check raises :class:`~shspec.errors.MeshError` whose message names the offending count or element, in this
 order: finite coordinates, repeated indices, unreferenced vertices, zero-area faces, non-manifold edges, boundary
 loops, orientation, components, non-manifold vertices, genus.  The order matters: a later check assumes the earlier
 ones passed (e.g. counting boundary loops needs every edge to have at most two faces).
+
+The genus check is on by default because cMCF, the harmonic bridge, the fits and the re-embedding all need a
+sphere-like surface; cotan spectra and their heat-trace invariants do not, and pass ``genus0=False``.
 """
 
 from __future__ import annotations
@@ -21,13 +24,15 @@ __all__ = ["validate_mesh", "ZERO_AREA_RTOL"]
 ZERO_AREA_RTOL = 1e-12
 
 
-def validate_mesh(mesh: TriangleMesh) -> TriangleMesh:
-    """Check that ``mesh`` is a closed, consistently oriented, manifold, connected genus-0 triangle mesh.
+def validate_mesh(mesh: TriangleMesh, *, genus0: bool = True) -> TriangleMesh:
+    """Check that ``mesh`` is a closed, consistently oriented, manifold, connected triangle mesh of genus 0.
 
     Parameters
     ----------
     mesh : TriangleMesh
         The mesh, n vertices and m faces.
+    genus0 : bool, default True
+        Also require genus 0 (Euler characteristic V − E + F = 2).  False accepts closed surfaces of any genus.
 
     Returns
     -------
@@ -112,7 +117,7 @@ def validate_mesh(mesh: TriangleMesh) -> TriangleMesh:
         raise MeshError(f"{pinch.size} vertices are not manifold (first: vertex {pinch[0]} joins "
                         f"{fans[pinch[0]]} separate fans of faces)")
     chi = n - nedges + f.shape[0]
-    if chi != 2:
+    if genus0 and chi != 2:
         genus = (2 - chi) / 2
         raise MeshError(f"the mesh has Euler characteristic {chi} (genus {genus:g}); shspec needs genus 0 (chi = 2)")
     return mesh

@@ -1,0 +1,128 @@
+"""One way to run independent jobs: a :class:`concurrent.futures.Executor` that is serial, a process pool or Dask.
+
+:func:`make_executor` is what every parallel loop of shspec uses (many meshes in ``shspec mesh-spectrum``; it is
+meant for parallel fit starts too), so that a caller writes the loop once against the standard Executor interface
+(``submit``, ``map``, ``shutdown``, ``with``) and the user picks where it runs:
+
+* neither ``workers`` nor ``scheduler``: :class:`SerialExecutor`, every job run at ``submit`` in this process
+  (debuggers and profilers see everything; exceptions surface from ``Future.result()`` as usual);
+* ``workers=N``: a :class:`~concurrent.futures.ProcessPoolExecutor` of N processes, started with ``spawn`` (no
+  fork of a process that already runs threads) and with one BLAS/OpenMP/numba thread each, so that N workers use
+  N cores rather than N × cores threads fighting over them;
+* ``scheduler=ADDRESS``: the executor of a Dask distributed cluster (``distributed.Client(ADDRESS).get_executor()``;
+  ADDRESS like ``tcp://host:8786``, or a ``LocalCluster``'s ``scheduler_address``).  The workers' thread counts are
+  the cluster's business (``dask worker --nthreads 1`` and OMP_NUM_THREADS=1 in their environment); shutting the
+  executor down closes the client, not the cluster.
+
+Jobs must be picklable: module-level functions with picklable arguments and results.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
+
+from .checks import check_int
+from .errors import InvalidArgumentError
+
+__all__ = ["SerialExecutor", "DaskExecutor", "make_executor", "THREAD_VARIABLES"]
+
+#: Environment variables that cap the thread pools of BLAS/OpenMP libraries loaded after they are set.
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+# The limiter of a worker process stays alive as long as the process.
+_LIMITS = []
+
+
+def _one_thread_per_worker() -> None:
+    """Process-pool initializer: one thread for every BLAS/OpenMP pool, numba included."""
+    for name in THREAD_VARIABLES:
+        os.environ[name] = "1"
+    import numba
+    import numpy  # noqa: F401  (load the BLAS that threadpoolctl then limits)
+    import scipy.linalg  # noqa: F401  (SciPy ships its own OpenBLAS)
+    from threadpoolctl import threadpool_limits
+
+    _LIMITS.append(threadpool_limits(limits=1))
+    numba.set_num_threads(1)
+
+
+class SerialExecutor(Executor):
+    """An Executor that runs each job when it is submitted, in the calling process and thread."""
+
+    def __init__(self):
+        self._shutdown = False
+
+    def submit(self, fn, /, *args, **kwargs) -> Future:
+        if self._shutdown:
+            raise RuntimeError("cannot submit to a SerialExecutor after shutdown")
+        future = Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except BaseException as exc:  # noqa: BLE001 - delivered through the future, as every Executor does
+            future.set_exception(exc)
+        return future
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        self._shutdown = True
+
+
+class DaskExecutor(Executor):
+    """The Executor of a Dask distributed client; ``shutdown`` also closes the client it owns.
+
+    Parameters
+    ----------
+    address : str
+        Scheduler address (``tcp://host:port``).
+    """
+
+    def __init__(self, address: str):
+        from distributed import Client
+
+        self.client = Client(address)
+        self._executor = self.client.get_executor()
+
+    def submit(self, fn, /, *args, **kwargs) -> Future:
+        return self._executor.submit(fn, *args, **kwargs)
+
+    def map(self, fn, *iterables, timeout=None, chunksize=1):
+        return self._executor.map(fn, *iterables, timeout=timeout)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        self._executor.shutdown(wait=wait)
+        self.client.close()
+
+
+def make_executor(workers: int | None = None, scheduler: str | None = None) -> Executor:
+    """An Executor for independent jobs: serial, a process pool of ``workers``, or a Dask cluster (module notes).
+
+    Parameters
+    ----------
+    workers : int, optional
+        Number of worker processes (≥ 1; 1 is serial).  Not together with ``scheduler``.
+    scheduler : str, optional
+        Address of a Dask distributed scheduler.
+
+    Returns
+    -------
+    concurrent.futures.Executor
+        Use it as a context manager so that it is shut down.
+
+    Raises
+    ------
+    InvalidArgumentError
+        If ``workers`` is not a positive integer, ``scheduler`` not a non-empty string, or both are given.
+    """
+    if workers is not None:
+        workers = check_int(workers, "workers", minimum=1, maximum=4096)
+    if scheduler is not None:
+        if not isinstance(scheduler, str) or not scheduler.strip():
+            raise InvalidArgumentError(f"scheduler must be an address string, got {scheduler!r}")
+        if workers is not None:
+            raise InvalidArgumentError("give workers (a local process pool) or scheduler (a Dask cluster), not both")
+        return DaskExecutor(scheduler.strip())
+    if workers is None or workers == 1:
+        return SerialExecutor()
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_one_thread_per_worker)

@@ -1,0 +1,128 @@
+"""Spectrum and descriptor files: text that ``numpy.loadtxt`` and ``shspec fit --target spectrum:FILE`` read.
+
+Writing.  Every file is plain text with '#' comment lines on top (what it holds, units, the source): the eigenvalue
+and Shape-DNA files hold one value per line (what :func:`shspec.inverse.targets.read_spectrum` reads), the heat
+trace two columns t, Z(t), the heat kernel signature one row per vertex and one column per time (the times in the
+header).
+
+Reading.  :func:`read_eigenvalues` also accepts two-column text (index, eigenvalue), as other tools write them;
+``read_spectrum`` flattens such a file into one interleaved list, so the second column is taken here instead.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import CheckpointError, InvalidArgumentError
+from ..inverse.targets import read_spectrum
+from .descriptors import heat_kernel_signature, hks_times, shape_dna
+from .heat import heat_trace
+
+__all__ = ["read_eigenvalues", "write_values", "write_descriptors", "DESCRIPTOR_SUFFIXES"]
+
+#: File name suffixes of :func:`write_descriptors`, after the stem.
+DESCRIPTOR_SUFFIXES = {"eigenvalues": ".eigenvalues.txt", "shapedna": ".shapedna.txt",
+                       "heat_trace": ".heat_trace.txt", "hks": ".hks.txt"}
+
+
+def read_eigenvalues(path) -> np.ndarray:
+    """Eigenvalues from a file: what ``read_spectrum`` reads, plus two-column text (index, value) (module notes).
+
+    Returns
+    -------
+    (k,) ndarray
+        λ₀ = 0 first (prepended when the file starts above 0).
+
+    Raises
+    ------
+    InvalidArgumentError
+        If the file cannot be read or holds no finite eigenvalues.
+    """
+    path = Path(path)
+    if path.suffix not in (".npy", ".json"):
+        try:
+            table = np.loadtxt(path, ndmin=2)
+        except (OSError, ValueError) as exc:
+            raise InvalidArgumentError(f"cannot read a spectrum from {path}: {exc}") from None
+        if table.shape[0] > 1 and table.shape[1] == 2:
+            lam = table[:, 1]
+            if lam.size == 0 or not np.all(np.isfinite(lam)):
+                raise InvalidArgumentError(f"{path} holds no finite eigenvalues")
+            return np.concatenate([[0.0], lam]) if lam[0] > 1e-8 * lam[-1] else np.concatenate([[0.0], lam[1:]])
+        if table.shape[0] > 1 and table.shape[1] > 2:
+            raise InvalidArgumentError(f"{path}: {table.shape[1]} columns; a spectrum file has one value per line "
+                                       "(or two columns: index, eigenvalue)")
+    return read_spectrum(path)
+
+
+def write_values(path, values, header: str) -> Path:
+    """Write (k,) values one per line at full precision under '#' ``header`` lines; returns the path."""
+    path = Path(path)
+    try:
+        np.savetxt(path, np.asarray(values, dtype=float).reshape(-1), fmt="%.17g", header=header)
+    except OSError as exc:
+        raise CheckpointError(f"cannot write {path}: {exc}") from exc
+    return path
+
+
+def write_descriptors(directory, stem: str, eigenvalues, area: float, *, eigenvectors=None, times=None,
+                      source: str = "") -> dict:
+    """Write the eigenvalues, Shape-DNA, heat trace and (with eigenvectors) HKS of one surface to ``directory``.
+
+    Parameters
+    ----------
+    directory : str or Path
+        An existing folder.
+    stem : str
+        File name stem; the files are stem + :data:`DESCRIPTOR_SUFFIXES`.
+    eigenvalues : (k,) array_like
+        λ₀ = 0 first.
+    area : float
+        Surface area (Shape-DNA's normalization).
+    eigenvectors : (n, k) array_like, optional
+        M-orthonormal eigenfunctions; without them no HKS file is written.
+    times : (p,) array_like, optional
+        Times of the heat trace and HKS (default :func:`~shspec.spectral.descriptors.hks_times`).
+    source : str
+        Where the spectrum came from, for the headers.
+
+    Returns
+    -------
+    dict
+        Descriptor name -> Path written.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise InvalidArgumentError(f"{directory} is not a directory")
+    t = hks_times(eigenvalues) if times is None else np.asarray(times, dtype=float)
+    k = np.asarray(eigenvalues).size
+    origin = f" of {source}" if source else ""
+    paths = {
+        "eigenvalues": write_values(directory / f"{stem}{DESCRIPTOR_SUFFIXES['eigenvalues']}", eigenvalues,
+                                    f"first {k} Laplace-Beltrami eigenvalues{origin}, ascending, 1/area; "
+                                    f"area {area:.17g}"),
+        "shapedna": write_values(directory / f"{stem}{DESCRIPTOR_SUFFIXES['shapedna']}",
+                                 shape_dna(eigenvalues, area),
+                                 f"Shape-DNA{origin}: eigenvalue * area (unit-area normalization of Reuter et al. "
+                                 f"2006, LaPy normalize_ev 'geometry'); area {area:.17g}"),
+    }
+    trace = np.stack([t, heat_trace(eigenvalues, t)], axis=1)
+    path = directory / f"{stem}{DESCRIPTOR_SUFFIXES['heat_trace']}"
+    try:
+        np.savetxt(path, trace, fmt="%.17g", header=f"heat trace{origin} of the first {k} eigenvalues (no tail): "
+                   "t [area units], Z(t) = sum exp(-lambda t)")
+    except OSError as exc:
+        raise CheckpointError(f"cannot write {path}: {exc}") from exc
+    paths["heat_trace"] = path
+    if eigenvectors is not None:
+        hks = heat_kernel_signature(eigenvalues, eigenvectors, t)
+        path = directory / f"{stem}{DESCRIPTOR_SUFFIXES['hks']}"
+        try:
+            np.savetxt(path, hks, fmt="%.10g", header=f"heat kernel signature{origin}: one row per vertex, one "
+                       f"column per time t [1/area]; times: {' '.join(f'{x:.10g}' for x in t)}")
+        except OSError as exc:
+            raise CheckpointError(f"cannot write {path}: {exc}") from exc
+        paths["hks"] = path
+    return paths
