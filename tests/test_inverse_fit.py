@@ -316,3 +316,14 @@ def test_cli_mesh_fit_of_a_real_mesh_writes_its_summary(shared_meshes, tmp_path)
     summary = json.loads((out / "summary.json").read_text())
     assert "alignment" in summary and "log_correlation" in summary
     assert (out / "vertex_factors.png").is_file()
+
+
+def test_cli_fit_on_workers_equals_the_serial_fit(tmp_path):
+    args = ["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "2",
+            "--max-iter", "2", "--schedule", "2,6", "--basin-hops", "0", "--quiet"]
+    assert main([*args, "--out", str(tmp_path / "serial")]) == 0
+    assert main([*args, "--workers", "2", "--out", str(tmp_path / "pool")]) == 0
+    a = json.loads((tmp_path / "serial" / "summary.json").read_text())
+    b = json.loads((tmp_path / "pool" / "summary.json").read_text())
+    assert [s["energy"] for s in b["starts"]] == pytest.approx([s["energy"] for s in a["starts"]], rel=1e-9)
+    assert main([*args, "--workers", "2", "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "x")]) == 1

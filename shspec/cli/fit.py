@@ -21,6 +21,7 @@ from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions, pa
 from ..inverse.schedule import degree_ramp, numeig_ramp
 from ..targets import TARGET_SOURCES, Target, parse_target
 from ..mesh.model import MeshModel
+from ..parallel import make_executor
 from ..spectral.topology import check_genus_zero
 from ..sphere.harmonics import as_coefficients
 
@@ -117,6 +118,10 @@ def register(subparsers) -> None:
                    help="starting point of the first start: a previous fit's result.h5 or summary.json, a .npy "
                    "array (flat coefficients or cilm; per-vertex factors for --model mesh) or a text column; with "
                    "--schedule auto the fit from it is one stage at full degree")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="run the starts on N local processes with one BLAS thread each (results equal a serial run)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the starts on a running Dask distributed cluster, e.g. tcp://host:8786")
     p.add_argument("--checkpoint-every", type=int, default=d.checkpoint_every, metavar="N",
                    help="write DIR/checkpoint.h5 every N iterations (0: never)")
     p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.h5")
@@ -158,7 +163,11 @@ def _fit(args) -> int:
         print(f"fitting {target.name}: {target.numeig} eigenvalues, {model.describe()}, {options.starts} starts",
               file=sys.stderr)
     init = None if args.init is None else read_initial(args.init, model)
-    result = fit(target, model, options, resume=args.resume, init=init)
+    if args.workers is None and args.scheduler is None:
+        result = fit(target, model, options, resume=args.resume, init=init)
+    else:
+        with make_executor(args.workers, args.scheduler) as executor:
+            result = fit(target, model, options, resume=args.resume, init=init, executor=executor)
     result.write(out)
     ident = result.identifiability()
     print(("warning: " if ident.underdetermined else "") + ident.statement(), file=sys.stderr)

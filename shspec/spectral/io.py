@@ -1,7 +1,7 @@
 """Spectrum and descriptor files: text that ``numpy.loadtxt`` and ``shspec fit --target spectrum:FILE`` read.
 
 Writing.  Every file is plain text with '#' comment lines on top (what it holds, units, the source): the eigenvalue
-and Shape-DNA files hold one value per line (what :func:`shspec.inverse.targets.read_spectrum` reads), the heat
+and Shape-DNA files hold one value per line (what :func:`shspec.targets.read_spectrum` reads), the heat
 trace two columns t, Z(t), the heat kernel signature one row per vertex and one column per time (the times in the
 header).
 
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import CheckpointError, InvalidArgumentError
-from ..inverse.targets import read_spectrum
+from ..targets import read_spectrum
 from .descriptors import heat_kernel_signature, hks_times, shape_dna
 from .heat import heat_trace
 
