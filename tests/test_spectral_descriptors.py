@@ -9,7 +9,7 @@ from lapy import TriaMesh
 from lapy.shapedna import normalize_ev, reweight_ev
 
 from shspec.errors import InvalidArgumentError
-from shspec.inverse.targets import read_spectrum
+from shspec.targets import read_spectrum
 from shspec.mesh.cotan import cotan_stiffness, mass_matrix
 from shspec.mesh.eigen import mesh_spectrum
 from shspec.mesh.shapes import blob
