@@ -16,7 +16,7 @@ import numpy as np
 
 from ..checks import check_int
 from ..errors import InvalidArgumentError
-from .heat import as_times, as_eigenvalues
+from .heat import as_eigenvalues, as_times
 
 __all__ = ["shape_dna", "hks_times", "heat_kernel_signature"]
 
