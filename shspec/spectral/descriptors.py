@@ -16,7 +16,7 @@ import numpy as np
 
 from ..checks import check_int
 from ..errors import InvalidArgumentError
-from .heat import _times, as_eigenvalues
+from .heat import as_eigenvalues, as_times
 
 __all__ = ["shape_dna", "hks_times", "heat_kernel_signature"]
 
@@ -83,5 +83,5 @@ def heat_kernel_signature(eigenvalues, eigenvectors, t) -> np.ndarray:
         raise InvalidArgumentError(f"eigenvectors must have shape (n, {lam.size}), got {phi.shape}")
     if not np.all(np.isfinite(phi)):
         raise InvalidArgumentError("eigenvectors hold NaN or inf")
-    t = _times(t)
+    t = as_times(t)
     return (phi * phi) @ np.exp(-np.outer(lam, t))

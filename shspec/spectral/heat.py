@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import InvalidArgumentError
 
-__all__ = ["as_eigenvalues", "heat_trace", "spectral_tail"]
+__all__ = ["as_eigenvalues", "as_times", "heat_trace", "spectral_tail"]
 
 
 def as_eigenvalues(values, *, minimum: int = 2, zero_rtol: float = 1e-8) -> np.ndarray:
@@ -52,7 +52,8 @@ def as_eigenvalues(values, *, minimum: int = 2, zero_rtol: float = 1e-8) -> np.n
     return lam
 
 
-def _times(t) -> np.ndarray:
+def as_times(t) -> np.ndarray:
+    """Times as a float array (p,), checked finite and positive (area units)."""
     t = np.atleast_1d(np.asarray(t, dtype=float))
     if t.ndim != 1 or t.size == 0 or not np.all(np.isfinite(t)) or np.any(t <= 0):
         raise InvalidArgumentError("heat-trace times t must be a non-empty 1-d array of finite positive values")
@@ -75,7 +76,7 @@ def heat_trace(eigenvalues, t) -> np.ndarray:
         Z at each t (dimensionless).
     """
     lam = as_eigenvalues(eigenvalues, minimum=1)
-    t = _times(t)
+    t = as_times(t)
     # Chunks over t keep the (p, k) exponent matrix small for long grids and spectra.
     out = np.empty(t.size)
     step = max(1, 2_000_000 // lam.size)
@@ -105,7 +106,7 @@ def spectral_tail(t, lam_max: float, density: float, density_slope: float = 0.0)
     -------
     (p,) ndarray
     """
-    t = _times(t)
+    t = as_times(t)
     lam_max, density, density_slope = float(lam_max), float(density), float(density_slope)
     if not (np.isfinite(lam_max) and lam_max > 0 and np.isfinite(density) and density > 0
             and np.isfinite(density_slope)):
