@@ -206,3 +206,21 @@ def test_one_cache_rule_whatever_the_checkout(tmp_path, monkeypatch):
     monkeypatch.setenv("SHSPEC_CACHE", str(tmp_path / "x"))
     assert cache_dir_source() == (tmp_path / "x", "$SHSPEC_CACHE")
     assert cache_dir_source(tmp_path / "y") == (tmp_path / "y", "--cache-dir")
+
+
+def test_a_checkout_uses_its_cache_folder_from_any_subfolder(tmp_path, monkeypatch):
+    from shspec.gaunt.cache import cache_dir_source
+
+    monkeypatch.delenv("SHSPEC_CACHE", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "user"))
+    checkout = tmp_path / "repo"
+    (checkout / "cache").mkdir(parents=True)
+    (checkout / "docs" / "deep").mkdir(parents=True)
+    (checkout / "pyproject.toml").write_text('[project]\nname = "shspec"\n')
+    monkeypatch.chdir(checkout / "docs" / "deep")
+    assert cache_dir_source() == (checkout / "cache", f"checkout {checkout}")
+    other = tmp_path / "other"
+    (other / "cache").mkdir(parents=True)
+    (other / "pyproject.toml").write_text('[project]\nname = "something-else"\n')
+    monkeypatch.chdir(other)
+    assert cache_dir_source() == (tmp_path / "user" / "shspec", "user cache")

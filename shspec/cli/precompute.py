@@ -34,8 +34,8 @@ actions:
   verify   recompute --samples random entries of a cached table and report the largest difference
   clean    remove the temporary files that killed writers left behind
 
-The cache directory is --cache-dir, else $SHSPEC_CACHE, else $XDG_CACHE_HOME/shspec (~/.cache/shspec), wherever
-shspec is installed or run from; 'list' prints which. Tables are written atomically under a lock: concurrent
+The cache directory is --cache-dir, else $SHSPEC_CACHE, else the cache/ folder of the shspec checkout the current
+directory lies in, else $XDG_CACHE_HOME/shspec (~/.cache/shspec), however shspec is installed; 'list' prints which. Tables are written atomically under a lock: concurrent
 builds of one table are safe, and a rebuild keeps the old file until the new one replaces it. A table for larger
 limits serves every smaller request. Sizes: (30,15) 3 MiB, (60,30) 88 MiB, (100,50) about 1.1 GiB.
 """
@@ -103,7 +103,8 @@ def _list(args) -> int:
     directory, source = cache_dir_source(args.cache_dir)
     tables = list_tables(directory, verify=True)
     temps = list_temporary_files(directory)
-    print(f"cache: {directory}  ({source}; the rule: --cache-dir, else $SHSPEC_CACHE, else ~/.cache/shspec)")
+    print(f"cache: {directory}  ({source}; the rule: --cache-dir, else $SHSPEC_CACHE, else the cache/ folder of the "
+          "shspec checkout around the current directory, else ~/.cache/shspec)")
     if not tables:
         print("(no tables)" if directory.is_dir() else "(no tables; the folder does not exist yet)")
     for t in tables:

@@ -14,9 +14,12 @@ attr ``checksum`` ``"blake2b:<hex>"`` of the raw little-endian bytes of ``/value
 attr ``shspec_version``, ``created`` (ISO 8601, UTC), ``build_seconds``
 ================  =========================================================================================
 
-The cache directory is, in order: the ``cache_dir`` argument, the ``SHSPEC_CACHE`` environment variable, or the
-user cache folder ``$XDG_CACHE_HOME/shspec`` (``~/.cache/shspec``).  The rule does not depend on where shspec is
-installed or run from, so ``python -m precompute`` in a checkout and the installed ``shspec`` share one cache.
+The cache directory is, in order: the ``cache_dir`` argument, the ``SHSPEC_CACHE`` environment variable, the
+``cache/`` folder of the shspec checkout the current directory lies in (found as git finds its repository: the
+nearest enclosing folder whose ``pyproject.toml`` names the project ``shspec`` and that has a ``cache/`` folder), or
+the user cache folder ``$XDG_CACHE_HOME/shspec`` (``~/.cache/shspec``).  The rule depends on where a command runs,
+never on how shspec was installed, so ``python -m precompute`` and the installed ``shspec`` run from the same folder
+share one cache.
 
 Writes are atomic (:mod:`shspec.atomic`) and hold the table's lock file ``<name>.lock``; a temporary file
 ``<name>.<random>.tmp`` that exists while nobody holds the lock was left by a writer that was killed, and is removed
@@ -53,21 +56,40 @@ __all__ = ["CONVENTION", "FORMAT_VERSION", "TableInfo", "TempFileInfo", "cache_d
 
 FORMAT_VERSION = 1
 CONVENTION = "real-ortho-csphase1-pyshtools; flat i=l*l+l+m; G_ijk=int Y_i Y_j Y_k dOmega"
+_PROJECT_NAME = re.compile(r'^name\s*=\s*"shspec"\s*$', re.M)
 _NAME = re.compile(r"^gaunt_Lb(\d+)_La(\d+)\.h5$")
 
 
 def cache_dir(path: str | os.PathLike | None = None) -> Path:
-    """The cache directory to use: ``path``, else ``$SHSPEC_CACHE``, else ``$XDG_CACHE_HOME/shspec`` (~/.cache/shspec)."""
+    """The cache directory to use: ``path``, else ``$SHSPEC_CACHE``, else the ``cache/`` folder of the checkout the
+    current directory lies in, else ``$XDG_CACHE_HOME/shspec`` (~/.cache/shspec); see the module notes."""
     return cache_dir_source(path)[0]
 
 
+def _checkout_cache(start: Path) -> Path | None:
+    """``cache/`` of the nearest folder at or above ``start`` holding shspec's pyproject.toml and a cache/ folder."""
+    for folder in (start, *start.parents):
+        project = folder / "pyproject.toml"
+        if (folder / "cache").is_dir() and project.is_file():
+            try:
+                if _PROJECT_NAME.search(project.read_text(errors="replace")):
+                    return folder / "cache"
+            except OSError:
+                continue
+    return None
+
+
 def cache_dir_source(path: str | os.PathLike | None = None) -> tuple[Path, str]:
-    """The cache directory and why it is that one (``"--cache-dir"``, ``"$SHSPEC_CACHE"`` or ``"user cache"``)."""
+    """The cache directory and why it is that one (``"--cache-dir"``, ``"$SHSPEC_CACHE"``, ``"checkout <folder>"``
+    or ``"user cache"``)."""
     if path is not None:
         return Path(path), "--cache-dir"
     env = os.environ.get("SHSPEC_CACHE")
     if env:
         return Path(env), "$SHSPEC_CACHE"
+    checkout = _checkout_cache(Path.cwd())
+    if checkout is not None:
+        return checkout, f"checkout {checkout.parent}"
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "shspec", "user cache"
 
 
