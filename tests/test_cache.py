@@ -201,6 +201,7 @@ def test_one_cache_rule_whatever_the_checkout(tmp_path, monkeypatch):
 
     monkeypatch.delenv("SHSPEC_CACHE", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.chdir(tmp_path)  # outside any checkout
     assert cache_dir() == tmp_path / "shspec"
     assert cache_dir_source() == (tmp_path / "shspec", "user cache")
     monkeypatch.setenv("SHSPEC_CACHE", str(tmp_path / "x"))
