@@ -68,7 +68,7 @@ class Need:
 
 def table_need(lmax: int, lmax_factor: int) -> Need:
     """Building and caching the table (Lb, La): its values in memory and on disk."""
-    from .gaunt.table import table_size
+    from .gaunt.table import table_size  # not at the top: shspec.gaunt's cache imports this module
 
     nbytes = 8 * table_size(lmax, lmax_factor)
     return Need(f"the Gaunt table ({lmax},{lmax_factor})", nbytes, nbytes)
@@ -76,7 +76,7 @@ def table_need(lmax: int, lmax_factor: int) -> Need:
 
 def forward_need(lmax: int, lmax_factor: int, *, with_table: bool = True) -> Need:
     """A forward solve at (Lb, La): table values (if ``with_table``), plan and two dense N × N matrices."""
-    from .gaunt.table import plan_bytes, table_size
+    from .gaunt.table import plan_bytes, table_size  # not at the top: shspec.gaunt's cache imports this module
 
     n = (lmax + 1) ** 2
     memory = plan_bytes(lmax, lmax_factor) + 2 * 8 * n * n

@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..experiments import EXPERIMENTS, run_experiment
+from ..report import build_report
+
 
 def register(sub) -> None:
-    from ..experiments import EXPERIMENTS
-
     listing = "\n".join(f"  {e.name:16s} {e.title} (full run about {e.expected_minutes:g} min)"
                         for e in sorted(EXPERIMENTS.values(), key=lambda e: e.name))
     p = sub.add_parser(
@@ -32,7 +33,6 @@ def register(sub) -> None:
 
 
 def _run(args) -> int:
-    from ..experiments import run_experiment
 
     run_experiment(args.name, Path(args.out or Path("experiments") / args.name), config_path=args.config,
                    quick=args.quick)
@@ -40,7 +40,6 @@ def _run(args) -> int:
 
 
 def _report(args) -> int:
-    from ..report import build_report
 
     path = build_report(args.folders, args.out)
     print(f"wrote {path}")

@@ -13,8 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .._version import __version__
 from ..atomic import atomic_hdf5, atomic_path
 from ..errors import BandLimitError, InvalidArgumentError, TruncationWarning
+from ..galerkin.convergence import convergence, convergence_in_factor, pl_spectrum_of_factor
+from ..galerkin.solver import MAX_BASIS_DEGREE, spectrum
+from ..io import ensure_directory, write_csv
 from ..sphere.harmonics import check_degree
 from ._rho import RHO_HELP, parse_rho
 
@@ -71,7 +75,6 @@ def _exact_sphere(k: int) -> np.ndarray:
 
 def _check_limits(args) -> None:
     """The band limits of the command line, checked with the library's own rules and named as options."""
-    from ..galerkin.solver import MAX_BASIS_DEGREE
 
     args.lmax = check_degree(args.lmax, "--lmax", minimum=1, maximum=MAX_BASIS_DEGREE)
     if args.lmax_factor is not None:
@@ -99,8 +102,6 @@ def _number(x: float) -> float | None:
 
 
 def run_forward(args) -> int:
-    from .. import __version__
-    from ..galerkin.solver import spectrum
 
     _check_limits(args)
     if args.out and Path(args.out).suffix.lower() not in (".json", ".h5", ".hdf5"):
@@ -172,19 +173,15 @@ def _save(path: Path, record: dict, vectors: np.ndarray) -> None:
 
 
 def run_convergence(args) -> int:
-    import csv
-
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..galerkin.convergence import convergence, convergence_in_factor, pl_spectrum_of_factor
 
     lmax_values = _int_list(args.lmax_values, "--lmax-values")
     rho = parse_rho(args.rho, args.lmax_factor)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = ensure_directory(args.out)
     studies = [convergence(rho, lmax_values, args.numeig, cache_dir=args.cache_dir)]
     if args.factor_values:
         studies.append(convergence_in_factor(rho, _int_list(args.factor_values, "--factor-values"), max(lmax_values),
@@ -195,10 +192,7 @@ def run_convergence(args) -> int:
     summary = {"rho": args.rho, "numeig": args.numeig, "studies": []}
     for study in studies:
         rows = study.table()
-        with open(out / f"convergence_{study.parameter}.csv", "w", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            writer.writeheader()
-            writer.writerows(rows)
+        write_csv(out / f"convergence_{study.parameter}.csv", rows)
         rates = study.rates()
         summary["studies"].append({
             "parameter": study.parameter, "values": study.values.tolist(), "fixed": study.fixed,

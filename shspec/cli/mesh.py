@@ -8,10 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InvalidArgumentError
+from ..io import ensure_directory
 from ..mesh.cmcf import CMCFOptions, cmcf
 from ..mesh.cotan import MASS_KINDS
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.io import load_mesh, save_mesh
+from ..mesh.plot import plot_hammer
 from ..parallel import make_executor
 from ..spectral.batch import run_batch
 
@@ -83,17 +85,9 @@ def _cmcf(args) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..mesh.plot import plot_hammer
-
     mesh = load_mesh(args.path, merge_vertices=args.merge_vertices or None)
     result = cmcf(mesh, CMCFOptions(tol=args.tol, max_iter=args.max_iter, center=not args.no_center))
-    out = args.out
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        from ..errors import CheckpointError
-
-        raise CheckpointError(f"cannot create output directory {out}: {exc}") from exc
+    out = ensure_directory(args.out)
     save_mesh(result.sphere, out / "sphere.obj")
     np.savetxt(out / "factors.txt", result.factors, fmt="%.17g",
                header="conformal factor per vertex: input vertex area / sphere vertex area")

@@ -23,6 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from ..checks import check_int
 from ..errors import InvalidArgumentError
 from ..mesh.cotan import cotan_stiffness, vertex_areas
 from ..mesh.triangle_mesh import TriangleMesh
@@ -64,8 +65,7 @@ class AmbiguityOptions:
             raise InvalidArgumentError(f"need 0 < min_area < max_area <= 1, got {self.min_area}, {self.max_area}")
         for name in ("max_caps", "iterations"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise InvalidArgumentError(f"AmbiguityOptions.{name} must be a positive integer, got {value!r}")
+            check_int(value, f"AmbiguityOptions.{name}", minimum=1)
         for name in ("rtol", "atol"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):

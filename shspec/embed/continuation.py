@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import check_int
 from ..errors import InvalidArgumentError
 
 __all__ = ["continuation_schedule"]
@@ -42,6 +43,5 @@ def continuation_schedule(factors, steps: int | None = None, *, max_log_step: fl
             raise InvalidArgumentError(f"max_log_step must be finite and > 0, got {max_log_step}")
         u = np.log(c)
         steps = max(1, int(np.ceil(np.max(np.abs(u - u.mean())) / max_log_step)))
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
-        raise InvalidArgumentError(f"steps must be a positive integer, got {steps!r}")
+    steps = check_int(steps, "steps", minimum=1)
     return np.arange(1, steps + 1) / steps

@@ -20,6 +20,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from ..checks import check_int
 from ..errors import InvalidArgumentError
 from ..mesh.triangle_mesh import TriangleMesh
 
@@ -169,8 +170,7 @@ def surface_distance(surface: TriangleMesh, target: TriangleMesh, *, reflection:
     -------
     SurfaceDistance
     """
-    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or samples < 100:
-        raise InvalidArgumentError(f"samples must be an integer >= 100, got {samples!r}")
+    samples = check_int(samples, "samples", minimum=100)
     T, corr = rigid_align(surface, target, reflection=reflection, samples=samples, seed=seed)
     moved = surface.with_vertices(surface.vertices @ T[:3, :3].T + T[:3, 3])
     a = _samples(moved, samples, seed)

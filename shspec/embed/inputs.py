@@ -6,6 +6,8 @@ import numpy as np
 
 from ..errors import InvalidArgumentError
 from ..mesh.triangle_mesh import TriangleMesh
+from ..sphere.evaluate import sample_harmonic
+from ..sphere.factor import ConformalFactor
 from .lengths import check_factors, check_sphere
 
 __all__ = ["vertex_factors"]
@@ -35,8 +37,6 @@ def vertex_factors(sphere: TriangleMesh, factors) -> np.ndarray:
     NotPositiveError
         ρ ≤ 0 at some vertex (a band-limited expansion of extreme factors can be).
     """
-    from ..sphere.factor import ConformalFactor
-    from ..sphere.evaluate import sample_harmonic
 
     sphere = check_sphere(sphere)
     n = sphere.nvertices

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..checks import check_int
 from ..errors import InvalidArgumentError
 from ..mesh.triangle_mesh import TriangleMesh
 
@@ -77,13 +78,10 @@ class EmbedOptions:
     check_intersections: bool = True
 
     def __post_init__(self):
-        if self.steps is not None and (isinstance(self.steps, bool) or not isinstance(self.steps, (int, np.integer))
-                                       or self.steps < 1):
-            raise InvalidArgumentError(f"EmbedOptions.steps must be None or a positive integer, got {self.steps!r}")
+        check_int(self.steps, "EmbedOptions.steps", minimum=1, allow_none=True)
         for name in ("iterations", "final_iterations", "cg_maxiter"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise InvalidArgumentError(f"EmbedOptions.{name} must be a positive integer, got {value!r}")
+            check_int(value, f"EmbedOptions.{name}", minimum=1)
         for name in ("max_log_step", "continuation_strain", "tol", "strain_tol", "damping", "ridge", "cg_tol"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):

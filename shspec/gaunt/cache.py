@@ -44,10 +44,13 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from .._version import __version__
 from ..atomic import atomic_hdf5, temporary_files
+from ..errors import BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError
 from ..resources import check_need, table_need
-from ..errors import (BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError)
+from ..sphere.harmonics import degree_order
 from .build import build_table
+from .real_gaunt import real_gaunt
 from .table import GauntTable, check_limits, table_size
 
 __all__ = ["CONVENTION", "FORMAT_VERSION", "TableInfo", "TempFileInfo", "cache_dir", "cache_dir_source", "table_path",
@@ -179,8 +182,6 @@ def save_table(table: GauntTable, directory: str | os.PathLike | None = None, *,
 
 def _write(table: GauntTable, path: Path, build_seconds: float) -> Path:
     """Write ``table`` to ``path`` atomically; the caller holds the lock."""
-    from .. import __version__
-
     checksum = _checksum(table.values)
     created = datetime.now(timezone.utc).isoformat(timespec="seconds")
     try:
@@ -458,9 +459,6 @@ def verify_table(table: GauntTable, samples: int = 2000, seed: int = 0) -> float
     Each sample is one plan entry (a real pair i <= j and an order m3) and one degree l3 of its family, recomputed
     with :func:`shspec.real_gaunt`.
     """
-    from .real_gaunt import real_gaunt
-    from ..sphere.harmonics import degree_order
-
     plan = table.plan
     n = plan.i.size
     if n == 0:

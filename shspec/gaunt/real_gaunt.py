@@ -32,6 +32,7 @@ import math
 import numba as nb
 import numpy as np
 
+from ..checks import check_int
 from ..errors import InvalidArgumentError
 from ..sphere.harmonics import MAX_DEGREE
 from .wigner import family_into, family_range
@@ -119,9 +120,7 @@ def real_gaunt(l1: int, m1: int, l2: int, m2: int, l3: int, m3: int) -> float:
     """
     vals = []
     for name, v in (("l1", l1), ("m1", m1), ("l2", l2), ("m2", m2), ("l3", l3), ("m3", m3)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
-            raise InvalidArgumentError(f"{name} must be an integer, got {v!r}")
-        vals.append(int(v))
+        vals.append(check_int(v, name, minimum=None))
     for l, m, name in ((vals[0], vals[1], "1"), (vals[2], vals[3], "2"), (vals[4], vals[5], "3")):
         if l < 0 or l > MAX_DEGREE:
             raise InvalidArgumentError(f"l{name} = {l} is outside 0..{MAX_DEGREE}")

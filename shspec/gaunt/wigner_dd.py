@@ -12,6 +12,7 @@ import math
 import numba as nb
 import numpy as np
 
+from ..checks import check_int
 from ..errors import InvalidArgumentError
 from ..sphere.harmonics import MAX_DEGREE
 from .doubledouble import (_DD_HUGE, _DD_TINY, _DD_ZERO, _dd_add, _dd_div, _dd_from_int, _dd_mul, _dd_mul_d,
@@ -217,12 +218,8 @@ def _normalize_dd(hi, lo, n, jmin, j2, j3, m1, sign_last):
 
 
 def _check_int(name, value):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise InvalidArgumentError(f"{name} must be an integer (half-integer spins are not supported), got {value!r}")
-    value = int(value)
-    if abs(value) > 2 * MAX_DEGREE:
-        raise InvalidArgumentError(f"{name} = {value} is out of range (|{name}| <= {2 * MAX_DEGREE})")
-    return value
+    # half-integer spins are not supported: every argument is an integer
+    return check_int(value, name, minimum=-2 * MAX_DEGREE, maximum=2 * MAX_DEGREE)
 
 
 def wigner3j_family(j2: int, j3: int, m2: int, m3: int) -> tuple[int, np.ndarray]:

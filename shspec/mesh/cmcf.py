@@ -23,6 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from ..checks import check_int
 from ..errors import InvalidArgumentError
 from .cotan import cotan_stiffness, vertex_areas
 from .mobius import center_mesh
@@ -78,8 +79,7 @@ class CMCFOptions:
                 raise InvalidArgumentError(f"CMCFOptions.{name} must be finite and > 0, got {value!r}")
         for name in ("stall_iterations", "max_iter", "refactor_after"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise InvalidArgumentError(f"CMCFOptions.{name} must be a positive integer, got {value!r}")
+            check_int(value, f"CMCFOptions.{name}", minimum=1)
         if not 0 < self.stall_ratio <= 1:
             raise InvalidArgumentError(f"CMCFOptions.stall_ratio must be in (0, 1], got {self.stall_ratio}")
 

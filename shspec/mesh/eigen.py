@@ -41,6 +41,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from ..checks import check_int
 from ..errors import ConvergenceError, InvalidArgumentError, MeshError
 from ..model import Spectrum
 from .cotan import cotan_stiffness, mass_matrix
@@ -107,8 +108,7 @@ def _check_pencil(L, M, k):
     n = L.shape[0]
     if L.shape != (n, n) or M.shape != (n, n):
         raise InvalidArgumentError(f"L and M must be square and of one size, got {L.shape} and {M.shape}")
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
-        raise InvalidArgumentError(f"k must be an integer, got {k!r}")
+    k = check_int(k, "k", minimum=None)
     if not 1 <= k < n:
         raise InvalidArgumentError(f"k must be in 1..{n - 1} for {n} vertices, got {k}")
     return n, int(k)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import check_int
 from ..errors import InvalidArgumentError, MeshError
 from .triangle_mesh import TriangleMesh
 
@@ -82,8 +83,7 @@ def implicit_surface(func, bounds, spacing: float, *, relax: int = 10) -> Triang
     spacing = float(spacing)
     if lo.shape != (3,) or not np.all(hi > lo) or not np.isfinite(spacing) or spacing <= 0:
         raise InvalidArgumentError(f"need bounds (2, 3) with upper > lower and spacing > 0, got {bounds}, {spacing}")
-    if isinstance(relax, bool) or not isinstance(relax, (int, np.integer)) or relax < 0:
-        raise InvalidArgumentError(f"relax must be a non-negative integer, got {relax!r}")
+    relax = check_int(relax, "relax", minimum=0)
     axes = [np.arange(lo[k], hi[k] + spacing, spacing) for k in range(3)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
     values = func(grid.reshape(-1, 3)).reshape(grid.shape[:3])

@@ -22,6 +22,7 @@ from ..sphere.random import random_coefficients
 from .bridge import fit_harmonic, mesh_band_limit
 from .cotan import cotan_stiffness, vertex_areas
 from .eigen import EigenOptions, eigenpairs
+from .figures import plot_spectra_validation, plot_vertex_factors
 from .triangle_mesh import TriangleMesh
 
 __all__ = ["MeshModel"]
@@ -220,8 +221,6 @@ class MeshModel(SpectralModel):
     def figures(self, params: np.ndarray, target) -> dict:
         """Hammer maps of the fitted factors (with the truth and their ratio when the target has per-vertex
         factors), and the study's validation of spectra when the target has its mesh."""
-        from .figures import plot_spectra_validation, plot_vertex_factors
-
         truth = getattr(target, "factors", None)
         truth = truth if truth is not None and np.shape(truth) == (self.nparams,) else None
         out = {"vertex_factors.png": plot_vertex_factors(self.mesh, self._factors(params), truth)}

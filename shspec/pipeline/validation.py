@@ -23,10 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import check_int
 from ..embed.ambiguity import AmbiguityReport, detect_ambiguity
+from ..embed.render import render_mesh
 from ..embed.distances import SurfaceDistance, surface_distance
 from ..embed.embed import EmbedOptions, EmbedResult, embed
-from ..checks import check_int
 from ..errors import InvalidArgumentError, NotPositiveError, ShspecError
 from ..galerkin.solver import HarmonicModel
 from ..inverse import FitOptions, align, fit, mesh_target
@@ -35,9 +36,10 @@ from ..mesh.bridge import fit_harmonic, mesh_band_limit
 from ..mesh.cmcf import CMCFResult, cmcf
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.model import MeshModel
+from ..mesh.plot import plot_hammer
 from ..mesh.triangle_mesh import TriangleMesh
-from ..sphere.evaluate import sample_harmonic
 from ..report import validation_markdown
+from ..sphere.evaluate import sample_harmonic
 from ..sphere.rotate import power_spectrum
 
 __all__ = ["ValidationOptions", "ValidationResult", "validate_target", "write_report", "SPECTRUM_LABELS"]
@@ -282,9 +284,6 @@ def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int =
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from ..embed.render import render_mesh
-    from ..mesh.plot import plot_hammer
 
     if not isinstance(result, ValidationResult):
         raise InvalidArgumentError(f"expected a ValidationResult, got {type(result).__name__}")
