@@ -11,21 +11,30 @@ from .errors import OutputError
 __all__ = ["ensure_directory", "write_csv"]
 
 
-def ensure_directory(path: str | os.PathLike) -> Path:
+def ensure_directory(path: str | os.PathLike, *, error: type[OSError] = OutputError,
+                     what: str = "output directory") -> Path:
     """Create the directory ``path`` (and its parents) if needed and return it.
+
+    Parameters
+    ----------
+    path : path-like
+    error : OSError subclass
+        What to raise (an :class:`OutputError` unless the caller's domain has its own, such as the cache's).
+    what : str
+        How the message names the directory.
 
     Raises
     ------
-    OutputError
+    OutputError (or ``error``)
         If a file stands in the way or the directory cannot be created.
     """
     out = Path(path)
     if out.exists() and not out.is_dir():
-        raise OutputError(f"cannot write into {out}: it is a file, not a directory")
+        raise error(f"the {what} {out} is a file, not a directory")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise OutputError(f"cannot create the output directory {out}: {exc}") from exc
+        raise error(f"cannot create the {what} {out}: {exc.strerror or exc}") from exc
     return out
 
 

@@ -47,6 +47,7 @@ import numpy as np
 from .._version import __version__
 from ..atomic import atomic_hdf5, temporary_files
 from ..errors import BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError
+from ..io import ensure_directory
 from ..resources import check_need, table_need
 from ..sphere.harmonics import degree_order
 from .build import build_table
@@ -104,12 +105,7 @@ def table_path(lmax: int, lmax_factor: int, directory: str | os.PathLike | None 
 
 def ensure_cache_dir(directory: Path) -> Path:
     """Create the cache directory if needed; raise CacheLocationError if it is a file or not writable."""
-    if directory.exists() and not directory.is_dir():
-        raise CacheLocationError(f"the cache location {directory} is a file, not a directory")
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise CacheLocationError(f"cannot create the cache directory {directory}: {exc.strerror}") from exc
+    ensure_directory(directory, error=CacheLocationError, what="cache location")
     if not os.access(directory, os.W_OK | os.X_OK):
         raise CacheLocationError(f"the cache directory {directory} is not writable (set SHSPEC_CACHE or cache_dir)")
     return directory
