@@ -218,3 +218,28 @@ def test_identifiability_reports_underdetermined_and_predicts_the_linear_error()
     est = identifiability(model, a, k, residuals=r).estimated_error
     assert est == pytest.approx(1e-6, rel=1e-3)
     assert ident.noise_gain > 0 and ident.estimated_error is None
+
+
+@pytest.mark.parametrize("sigma", [1e-6, 1e-4])
+def test_noisy_spectra_are_fitted_to_the_error_the_noise_gain_predicts(sigma):
+    """Fit a spectrum with relative noise sigma from the truth: the relative error of rho (rotations projected out)
+    is noise_gain * sigma within a factor 3 (the gain is the expected RMS over noise draws)."""
+    from shspec.inverse import FitOptions, Target, fit
+    from shspec.inverse.identifiability import identifiability
+    from shspec.sphere.random import random_centred_coefficients
+
+    model = HarmonicModel(12, 3)
+    a = random_centred_coefficients(8, 3, 0.2)
+    k = 80
+    lam = model.spectrum(a, k).eigenvalues
+    noisy = lam * (1 + sigma * np.random.default_rng(9).standard_normal(k))
+    noisy[0] = 0.0
+    target = Target("noisy", np.sort(noisy), area=4 * np.pi)
+    result = fit(target, model, FitOptions(starts=1, max_iter=60, residual_tol=1e-15, energy_tol=1e-12, basin_hops=0),
+                 init=a)
+    delta = result.best.params - a
+    T = model.symmetry_directions(a)
+    delta -= T @ np.linalg.lstsq(T, delta, rcond=None)[0]
+    observed = np.linalg.norm(delta) / np.linalg.norm(a)
+    predicted = identifiability(model, a, k).noise_gain * sigma
+    assert predicted / 3 < observed < 3 * predicted
