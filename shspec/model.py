@@ -153,9 +153,10 @@ class SpectralModel(ABC):
         rotations of a harmonic ρ); the identifiability analysis counts them out.  Default: none, (nparams, 0)."""
         return np.zeros((self.nparams, 0))
 
-    def escape_moves(self, params: np.ndarray, level: int | None = None) -> list:
-        """Parameter vectors (nparams,) that keep :meth:`invariant` but may lie in another basin (basin hops).
-        Default: none."""
+    def escape_moves(self, params: np.ndarray, level: int | None = None, *, newest: bool = False) -> list:
+        """Parameter vectors (nparams,) that keep :meth:`invariant` but may lie in another basin (basin hops); with
+        ``newest``, the moves of only the part that ``level`` adds to the level below (tried when a stage first fits
+        it).  Default: none."""
         return []
 
     def to_factor(self, params: np.ndarray):

@@ -327,3 +327,29 @@ def test_cli_fit_on_workers_equals_the_serial_fit(tmp_path):
     b = json.loads((tmp_path / "pool" / "summary.json").read_text())
     assert [s["energy"] for s in b["starts"]] == pytest.approx([s["energy"] for s in a["starts"]], rel=1e-9)
     assert main([*args, "--workers", "2", "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "x")]) == 1
+
+
+def test_orienting_a_new_block_finds_its_place_relative_to_the_lower_ones():
+    """The blob truncated to degree 3 with its degree-3 block turned by a 90-degree rotation: same power, wrong
+    spectrum; the orientation search after the stage that fits degree 3 turns it back."""
+    from shspec.inverse.schedule import FitProblem, StartProgress, _orient_new_block
+
+    model = HarmonicModel(10, 3)
+    truth = blob_factor().truncated(3).coefficients
+    target = harmonic_target(truth, 10, 30)
+    moves = model.escape_moves(truth, 3, newest=True)
+    assert len(moves) == 23 + 24  # proper rotations but the identity; improper ones for the odd block
+    for q in moves:
+        np.testing.assert_allclose(power_spectrum(q), power_spectrum(truth), rtol=1e-12, atol=1e-15)
+        np.testing.assert_array_equal(q[:9], truth[:9])  # the lower blocks stay where they are
+    wrong = moves[5]
+    problem = FitProblem(model, target, FitOptions(starts=1, schedule=(Stage(2, 16), Stage(3, 30)), max_iter=30,
+                                                   hop_iter=3, orient_blocks=True))
+    obj = problem.objective(1, wrong)
+    ev = obj.evaluate(obj.initial())
+    assert ev.relative_residual > 1e-4
+    progress = StartProgress(0, 1, wrong, None, params=wrong, energy=ev.energy,
+                             relative_residual=ev.relative_residual, eigenvalues=ev.eigenvalues)
+    _orient_new_block(problem, progress, 1)
+    assert progress.relative_residual < 1e-10
+    assert align(ConformalFactor(progress.params), truth).relative_error < 1e-8

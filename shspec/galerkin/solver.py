@@ -21,6 +21,7 @@ import numba as nb
 import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
+from scipy.spatial.transform import Rotation
 
 from ..checks import check_int
 from ..errors import BandLimitError, InvalidArgumentError, NotPositiveError, ShspecError, TruncationWarning
@@ -281,25 +282,38 @@ class HarmonicModel(SpectralModel):
             out.append(rotate_coefficients(lz(rotate_coefficients(a, np.array(inverse))), np.array(angles)))
         return np.stack(out, axis=1)
 
-    def escape_moves(self, params: np.ndarray, level: int | None = None) -> list:
-        """Power-preserving moves of one degree block l ≥ 2 (l ≤ level): its half-turns about the z, y and x axes,
-        and for odd l also these composed with the sign −1 and the sign alone (the point reflection of that block).
+    def escape_moves(self, params: np.ndarray, level: int | None = None, *, newest: bool = False) -> list:
+        """Power-preserving moves of one degree block l ≥ 2 (l ≤ level).
 
-        The failed fits of the blob end in local minima whose per-degree power is already right (to ~1e-4) while
-        the degree blocks are wrongly placed relative to each other; for even l the mirror z ↦ −z of a block is its
-        half-turn about z, for odd l the negated one.
+        Default: for every block its half-turns about the z, y and x axes, and for odd l also these composed with
+        the sign −1 and the sign alone (the point reflection of that block).  The failed fits of the blob end in
+        local minima whose per-degree power is already right (to ~1e-4) while the degree blocks are wrongly placed
+        relative to each other; for even l the mirror z ↦ −z of a block is its half-turn about z, for odd l the
+        negated one.
+
+        ``newest``: only the block of degree ``level``, turned by the 23 non-trivial rotations of the octahedral
+        group (a grid of SO(3) 90° apart) and, for odd degrees, by the 24 improper ones (the point reflection acts
+        on degree l as (−1)^l) — its orientation relative to the blocks fitted before it.
         """
         la = self.lmax_factor if level is None else self.restrict(level).lmax_factor
         params = np.asarray(params, dtype=float)
         l_all = degrees(la)
+        blocks = [la] if newest else range(2, la + 1)
         moves = []
-        for l in range(2, la + 1):
+        for l in blocks:
+            if l < 2:
+                continue
             sel = l_all == l
             sub = np.where(sel, params[:l_all.size], 0.0)
-            turns = [rotate_coefficients(sub, np.array(ang)) for ang in ((np.pi, 0, 0), (0, np.pi, 0),
-                                                                           (np.pi, np.pi, 0))]
-            if l % 2:
-                turns += [-t for t in turns] + [-sub]
+            if newest:
+                turns = [rotate_coefficients(sub, angles) for angles in _OCTAHEDRAL_EULER[1:]]
+                if l % 2:
+                    turns += [-rotate_coefficients(sub, angles) for angles in _OCTAHEDRAL_EULER]
+            else:
+                turns = [rotate_coefficients(sub, np.array(ang)) for ang in ((np.pi, 0, 0), (0, np.pi, 0),
+                                                                               (np.pi, np.pi, 0))]
+                if l % 2:
+                    turns += [-t for t in turns] + [-sub]
             for turn in turns:
                 q = params.copy()
                 q[:l_all.size][sel] = turn[sel]
@@ -308,6 +322,19 @@ class HarmonicModel(SpectralModel):
 
     def to_factor(self, params: np.ndarray) -> ConformalFactor:
         return ConformalFactor(np.array(params, dtype=float), name="fit")
+
+
+def _octahedral_euler() -> list:
+    """z-y-z Euler angles (3,) of the 24 rotations of the octahedral group, the identity first."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # gimbal lock: any of the equivalent angle triples will do
+        group = Rotation.create_group("O")
+        angles = [group[i].as_euler("zyz") for i in range(len(group))]
+    angles.sort(key=lambda a: float(np.sum(np.abs(Rotation.from_euler("zyz", a).as_rotvec()))))
+    return [np.asarray(a, dtype=float) for a in angles]
+
+
+_OCTAHEDRAL_EULER = _octahedral_euler()
 
 
 def _minimum(params) -> float:

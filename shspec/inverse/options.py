@@ -127,6 +127,11 @@ class FitOptions:
         on that one problem only, and it lengthens every failed start.
     hop_iter : int
         Iterations given to each move of a basin hop.
+    orient_blocks : bool
+        After each stage that first fits a new level (a new degree block), try the model's orientations of that
+        block relative to the ones fitted before (:meth:`~shspec.model.SpectralModel.escape_moves` with
+        ``newest=True``: an octahedral grid of rotations, and reflections of odd blocks), each with ``hop_iter``
+        iterations, and go on from the best that lowers the energy.  Default off (see the benchmark).
     distinct_tol : float
         Two converged starts are the same local solution when their energies agree to this relative tolerance
         and their per-degree powers (rotation invariant) agree to it relative to the total power.
@@ -156,6 +161,7 @@ class FitOptions:
     lm_damping: float = 1e-3
     basin_hops: int = 4
     hop_iter: int = 15
+    orient_blocks: bool = False
     distinct_tol: float = 1e-4
     success_tol: float = 1e-10
     checkpoint_every: int = 0

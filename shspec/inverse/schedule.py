@@ -276,8 +276,10 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
             if checkpoint is not None and opt.checkpoint_every and (len(progress.history) - 1) % opt.checkpoint_every == 0:
                 checkpoint(progress)
         progress.status = optimizer.status or "max_iter"
-        params = progress.params
         progress.state = None
+        if opt.orient_blocks and _raises_level(problem, s) and progress.relative_residual > opt.success_tol:
+            _orient_new_block(problem, progress, s)
+        params = progress.params
         if opt.progress:
             print(f"\r  start {progress.index} stage {s} ({_level_text(obj.model, problem.level(s))}{obj.target.size} "
                   f"eigenvalues): "
@@ -293,24 +295,30 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
     return progress.result(progress.status, time.perf_counter() - t0, opt.success_tol)
 
 
+def _raises_level(problem: FitProblem, s: int) -> bool:
+    """Whether stage s raises the level of stage s − 1, i.e. fits a block no earlier stage had."""
+    levels = problem.model.levels()
+    if not levels or s == 0:
+        return False
+    top = levels[-1]
+    old = top if problem.level(s - 1) is None else problem.level(s - 1)
+    new = top if problem.level(s) is None else problem.level(s)
+    return new > old
+
+
 def _level_text(model: SpectralModel, level: int | None) -> str:
     if not model.levels():
         return ""
     return f"degree {max(model.levels()) if level is None else level}, "
 
 
-def _basin_hop(problem: FitProblem, progress: StartProgress, status: str) -> str:
-    """Leave a local minimum by the model's escape moves (see :attr:`FitOptions.basin_hops`).
+def _hop_once(problem: FitProblem, progress: StartProgress, s: int, moves: list, status: str) -> tuple[bool, str]:
+    """Try ``moves`` (parameter vectors) from the state in ``progress`` with the objective of stage s: in the order
+    of their energy before any refit (one eigensolve each), each refitted for ``hop_iter`` iterations; the first that
+    ends below the current energy is refitted to convergence and accepted into ``progress``.  Deterministic.
 
-    The moves keep the model's invariant (harmonic models: the per-degree power, by half-turns and sign flips of
-    single degree blocks); they are tried in the order of their energy before any refit, with ``hop_iter``
-    iterations of the last stage each, the first whose energy ends below the current one is refitted to
-    convergence, and the hops stop at success, after ``basin_hops`` accepted moves, or when no move lowers the
-    energy.  Deterministic.  Models without moves make this a no-op.
-    """
+    Returns (accepted, status of the last refit or ``status``)."""
     opt = problem.options
-    s = len(problem.stages) - 1
-    level = problem.level(s)
 
     def run(params, iters):
         try:
@@ -331,23 +339,52 @@ def _basin_hop(problem: FitProblem, progress: StartProgress, status: str) -> str
         except NotPositiveError:
             return np.inf
 
-    for hop in range(opt.basin_hops):
-        accepted = False
-        moves = problem.model.escape_moves(progress.params, level)
-        # Cheapest first: one eigensolve per move, then the short refits in order of the moved energy.
-        for q in [moves[k] for k in np.argsort([energy(q) for q in moves], kind="stable")]:
-            out = run(q, opt.hop_iter)
-            if out is None or out[0].ev.energy >= progress.energy:
-                continue
-            optimizer, obj, hist = out
-            full = run(problem.merge(s, q, obj, optimizer.x), problem.stages[s].max_iter or opt.max_iter)
-            optimizer, obj, hist2 = full
-            progress.history.extend(hist + hist2)
-            progress.params = problem.merge(s, q, obj, optimizer.x)
-            progress.energy, progress.relative_residual = optimizer.ev.energy, optimizer.ev.relative_residual
-            progress.eigenvalues = optimizer.ev.eigenvalues
-            status, accepted = optimizer.status or "max_iter", True
+    energies = [energy(q) for q in moves]
+    for k in np.argsort(energies, kind="stable"):
+        if not np.isfinite(energies[k]):
             break
+        out = run(moves[k], opt.hop_iter)
+        if out is None or out[0].ev.energy >= progress.energy:
+            continue
+        optimizer, obj, hist = out
+        q = problem.merge(s, moves[k], obj, optimizer.x)
+        full = run(q, problem.stages[s].max_iter or opt.max_iter)
+        optimizer, obj, hist2 = full
+        progress.history.extend(hist + hist2)
+        progress.params = problem.merge(s, q, obj, optimizer.x)
+        progress.energy, progress.relative_residual = optimizer.ev.energy, optimizer.ev.relative_residual
+        progress.eigenvalues = optimizer.ev.eigenvalues
+        return True, optimizer.status or "max_iter"
+    return False, status
+
+
+def _orient_new_block(problem: FitProblem, progress: StartProgress, s: int) -> None:
+    """After stage s raised the level: try the orientations of the newest block (the model's moves with
+    ``newest=True``: rotations of an octahedral grid and, for odd degrees, their negatives) relative to the blocks
+    fitted before, keeping the best that lowers the energy (see :attr:`FitOptions.orient_blocks`)."""
+    moves = problem.model.escape_moves(progress.params, problem.level(s), newest=True)
+    accepted, status = _hop_once(problem, progress, s, moves, progress.status)
+    if accepted:
+        progress.status = status
+    if problem.options.progress:
+        print(f"  start {progress.index} stage {s}: {len(moves)} orientations of the new block, "
+              + (f"one accepted, max rel. residual {progress.relative_residual:.3e}" if accepted
+                 else "none lowers the energy"), file=sys.stderr, flush=True)
+
+
+def _basin_hop(problem: FitProblem, progress: StartProgress, status: str) -> str:
+    """Leave a local minimum by the model's escape moves (see :attr:`FitOptions.basin_hops`).
+
+    The moves keep the model's invariant (harmonic models: the per-degree power, by half-turns and sign flips of
+    single degree blocks); each hop is :func:`_hop_once` on the last stage, and the hops stop at success, after
+    ``basin_hops`` accepted moves, or when no move lowers the energy.  Deterministic.  Models without moves make this
+    a no-op.
+    """
+    opt = problem.options
+    s = len(problem.stages) - 1
+    for hop in range(opt.basin_hops):
+        moves = problem.model.escape_moves(progress.params, problem.level(s))
+        accepted, status = _hop_once(problem, progress, s, moves, status)
         if opt.progress:
             print(f"  start {progress.index} basin hop {hop + 1}: "
                   + (f"a move was accepted, {status}, max rel. residual {progress.relative_residual:.3e}" if accepted
