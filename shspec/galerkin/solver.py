@@ -44,7 +44,7 @@ __all__ = ["HarmonicModel", "SpectrumResult", "spectrum", "MAX_BASIS_DEGREE", "W
 #: A warm start is tried only when ‖a − a_start‖ ≤ WARM_GATE · ‖a‖: beyond it Rayleigh–Ritz on the old vectors
 #: cannot reach 1e-14 (its eigenvalue error is ~250·δ² at (30, 15, 256), :mod:`shspec.galerkin.eigen`), and the
 #: attempt would cost a fifth of a cold solve for nothing.
-WARM_GATE = 1e-6
+WARM_GATE = 1e-8
 
 
 @nb.njit(cache=True, parallel=True)
