@@ -39,22 +39,30 @@ def guard_count(nwanted: int, size: int) -> int:
     return int(min(max(8, nwanted // 16), size - nwanted))
 
 
-def cold_eigh(h_upper: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray, str]:
+def cold_eigh(h_upper: np.ndarray, count: int, vectors: bool = True,
+              ) -> tuple[np.ndarray, np.ndarray | None, str]:
     """The ``count`` largest eigenpairs of the symmetric H given by its upper triangle (overwritten).
 
     Returns
     -------
     mu : (count,) float array, descending
-    u : (n, count) float array, orthonormal eigenvectors
+    u : (n, count) float array, orthonormal eigenvectors (None unless ``vectors``)
     driver : str, the LAPACK driver used ('evr' or 'evd')
     """
     n = h_upper.shape[0]
+    keep = slice(n - 1, n - count - 1 if count < n else None, -1)
     if count >= EVD_SHARE * n:
-        mu, u = scipy.linalg.eigh(h_upper, lower=False, driver="evd", overwrite_a=True, check_finite=False)
-        return mu[:n - count - 1:-1], u[:, :n - count - 1:-1], "evd"
-    mu, u = scipy.linalg.eigh(h_upper, lower=False, subset_by_index=[n - count, n - 1], driver="evr",
-                              overwrite_a=True, check_finite=False)
-    return mu[::-1], u[:, ::-1], "evr"
+        out = scipy.linalg.eigh(h_upper, lower=False, driver="evd", overwrite_a=True, check_finite=False,
+                                eigvals_only=not vectors)
+        driver = "evd"
+    else:
+        out = scipy.linalg.eigh(h_upper, lower=False, subset_by_index=[n - count, n - 1], driver="evr",
+                                overwrite_a=True, check_finite=False, eigvals_only=not vectors)
+        keep = slice(None, None, -1)
+        driver = "evr"
+    if not vectors:
+        return out[keep], None, driver
+    return out[0][keep], out[1][:, keep], driver
 
 
 def warm_eigh(h_upper: np.ndarray, basis: np.ndarray, nwanted: int, tol: float = WARM_TOLERANCE,
