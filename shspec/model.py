@@ -71,8 +71,12 @@ class SpectralModel(ABC):
     # -- the forward problem ----------------------------------------------------------------------------------------
 
     @abstractmethod
-    def spectrum(self, params: np.ndarray, k: int) -> Spectrum:
-        """First k eigenpairs for the parameters ``params`` (nparams,); raises NotPositiveError if M(params) is not SPD."""
+    def spectrum(self, params: np.ndarray, k: int, *, start: Spectrum | None = None) -> Spectrum:
+        """First k eigenpairs for the parameters ``params`` (nparams,); raises NotPositiveError if M(params) is not SPD.
+
+        ``start``: optionally, a spectrum this model returned for nearby parameters (a fit passes its previous
+        evaluation).  A model may use it to warm-start its eigensolver, but the result must be the one of a cold
+        solve to the solver's accuracy; models may ignore it (:class:`~shspec.mesh.MeshModel` does)."""
 
     @abstractmethod
     def contract(self, spec: Spectrum, coef: np.ndarray) -> np.ndarray:

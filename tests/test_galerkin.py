@@ -129,3 +129,13 @@ def test_bad_arguments():
         HarmonicModel(6, 2).spectrum(np.ones(4), 3)
     with pytest.raises(BandLimitError, match="precompute"):
         HarmonicModel(41, 37, build=False)
+
+
+@pytest.mark.parametrize("k", [1, 2, 20, 120, 169])
+def test_eigenvalues_alone_equal_the_spectrum(rng, k):
+    # k = 20 takes the MRRR subset driver, 120 and 169 the full divide and conquer (shspec.galerkin.eigen)
+    model = HarmonicModel(12, 4)
+    a = random_factor_coefficients(rng, 4, amplitude=0.3)
+    full = model.spectrum(a, k)
+    np.testing.assert_allclose(model.eigenvalues(a, k), full.eigenvalues, rtol=1e-13, atol=1e-13)
+    assert k < 3 or full.solver == ("evr" if k == 20 else "evd")

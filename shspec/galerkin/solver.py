@@ -7,8 +7,11 @@ How it is solved.  The constant Y_00 spans the kernel of S (λ₀ = 0, v₀ = e�
 M-orthogonal to it, which eliminates its first coordinate, v₀ = −m·v_r/M₀₀ with m = M[0, 1:]; what is left is
 S_r v_r = λ K v_r with the Schur complement K = M_rr − m mᵀ/M₀₀ (SPD).  Scaling by D = S_r^{1/2} (diagonal, positive)
 turns it into the *standard* symmetric problem H u = μ u, H = D⁻¹ K D⁻¹, μ = 1/λ, of which we want the largest k−1
-eigenvalues.  This skips the Cholesky factorization and the two-sided reduction of a generalized solver, and LAPACK's
-MRRR driver computes only the wanted eigenvectors.  Then v_r = √λ D⁻¹ u is M-normalized.
+eigenvalues.  This skips the Cholesky factorization and the two-sided reduction of a generalized solver; LAPACK's MRRR
+subset driver or its full divide and conquer, whichever is faster for the share wanted, solves it
+(:mod:`shspec.galerkin.eigen`), or a certified Rayleigh–Ritz step from the eigenvectors of a nearby ρ (a warm start).
+Then v_r = √λ D⁻¹ u is M-normalized.  The derivatives' quadratic forms v_iᵀ G_k v_i come from an exact quadrature
+(:mod:`shspec.galerkin.gridforms`).
 """
 
 from __future__ import annotations
@@ -33,9 +36,16 @@ from ..sphere.factor import ConformalFactor, as_factor
 from ..sphere.harmonics import check_degree, degree_order, degrees, ncoeffs
 from ..sphere.random import random_coefficients
 from ..sphere.rotate import power_spectrum, rotate_coefficients
+from .eigen import cold_eigh, guard_count, warm_eigh
+from .gridforms import GridQuadraticForms
 from .truncation import DEFAULT_TRUNCATION_TOL, TruncationEstimate, factor_truncation, tail_bound
 
-__all__ = ["HarmonicModel", "SpectrumResult", "spectrum", "MAX_BASIS_DEGREE"]
+__all__ = ["HarmonicModel", "SpectrumResult", "spectrum", "MAX_BASIS_DEGREE", "WARM_GATE"]
+
+#: A warm start is tried only when ‖a − a_start‖ ≤ WARM_GATE · ‖a‖: beyond it Rayleigh–Ritz on the old vectors
+#: cannot reach 1e-14 (its eigenvalue error is ~250·δ² at (30, 15, 256), :mod:`shspec.galerkin.eigen`), and the
+#: attempt would cost a fifth of a cold solve for nothing.
+WARM_GATE = 1e-8
 
 
 @nb.njit(cache=True, parallel=True)
@@ -66,11 +76,21 @@ class SpectrumResult(Spectrum):
     truncation : TruncationEstimate or None
         Estimated relative errors from the two band limits (:mod:`shspec.galerkin.truncation`); set by
         :func:`spectrum`, None from :meth:`HarmonicModel.spectrum`.
+    coefficients : (nparams,) float array or None
+        The factor coefficients a solved for (what a warm start compares with).
+    reduced_vectors : (N−1, k−1+g) float array or None
+        Orthonormal eigenvectors u of the reduced problem H u = μ u (module docstring), μ descending, with g guard
+        vectors beyond the k−1 wanted: the seed of a warm start (:func:`shspec.galerkin.eigen.warm_eigh`).
+    solver : str
+        How it was solved: 'evr' or 'evd' (the cold LAPACK driver), 'warm' (certified Rayleigh–Ritz), '' (k = 1).
     """
 
     lmax: int = 0
     lmax_factor: int = 0
     truncation: TruncationEstimate | None = None
+    coefficients: np.ndarray | None = dataclasses.field(default=None, repr=False)
+    reduced_vectors: np.ndarray | None = dataclasses.field(default=None, repr=False)
+    solver: str = ""
 
 
 class HarmonicModel(SpectralModel):
@@ -121,6 +141,7 @@ class HarmonicModel(SpectralModel):
         ls = degrees(lmax)[1:].astype(float)
         self._dinv = 1.0 / np.sqrt(ls * (ls + 1.0))
         self._restricted: dict[int, HarmonicModel] = {}
+        self._grid_forms: GridQuadraticForms | None = None
 
     def __repr__(self) -> str:
         return f"HarmonicModel(lmax={self.lmax}, lmax_factor={self.lmax_factor})"
@@ -141,8 +162,57 @@ class HarmonicModel(SpectralModel):
         """The full symmetric mass matrix M(a), (N, N)."""
         return self.table.mass_matrix(self._params(params))
 
-    def spectrum(self, params, k: int) -> SpectrumResult:
-        """First k eigenpairs (λ₀ = 0 included) for the factor coefficients ``params`` or a ConformalFactor."""
+    def spectrum(self, params, k: int, *, start: Spectrum | None = None) -> SpectrumResult:
+        """First k eigenpairs (λ₀ = 0 included) for the factor coefficients ``params`` or a ConformalFactor.
+
+        ``start``: the spectrum of a nearby ρ from this model (the previous evaluation of a fit).  Its eigenvectors
+        and guard vectors seed a certified Rayleigh–Ritz step (:func:`shspec.galerkin.eigen.warm_eigh`), used when
+        ρ moved by at most :data:`WARM_GATE` (relative, in the coefficients) and the residual bound certifies the
+        eigenvalues to 1e-14 relative; otherwise, and for a ``start`` of another model or size, the cold solve.
+        The result says which in ``solver``.
+        """
+        if start is not None and not isinstance(start, Spectrum):
+            raise InvalidArgumentError(f"start must be a Spectrum or None, got {type(start).__name__}")
+        a, k, m = self._mass(params, k)
+        n = self.nbasis
+        vals = np.zeros(k)
+        vecs = np.zeros((n, k))
+        vecs[0, 0] = 1.0 / np.sqrt(m[0, 0])
+        if k == 1:
+            return SpectrumResult(vals, vecs, lmax=self.lmax, lmax_factor=self.lmax_factor, coefficients=a.copy())
+        h = np.empty((n - 1, n - 1))
+        _schur_scaled_upper(m, self._dinv, h)
+        ritz, solver = None, "warm"
+        if self._warm_usable(start, a, k):
+            ritz = warm_eigh(h, start.reduced_vectors, k - 1)
+        if ritz is None:
+            mu, u, solver = cold_eigh(h, k - 1 + guard_count(k - 1, n - 1))
+        else:
+            mu, u = ritz
+        self._check_reduced(mu[k - 2])
+        lam = 1.0 / mu[:k - 1]
+        vr = (u[:, :k - 1] * self._dinv[:, None]) * np.sqrt(lam)[None, :]
+        vecs[1:, 1:] = vr
+        vecs[0, 1:] = -(m[0, 1:] @ vr) / m[0, 0]
+        vals[1:] = lam
+        return SpectrumResult(vals, vecs, lmax=self.lmax, lmax_factor=self.lmax_factor, coefficients=a.copy(),
+                              reduced_vectors=np.ascontiguousarray(u), solver=solver)
+
+    def eigenvalues(self, params, k: int) -> np.ndarray:
+        """The first k eigenvalues (k,) alone, as :meth:`spectrum` gives them cold; about half its time without the
+        eigenvectors (what the truncation estimate of :func:`spectrum` needs)."""
+        a, k, m = self._mass(params, k)
+        vals = np.zeros(k)
+        if k > 1:
+            h = np.empty((self.nbasis - 1, self.nbasis - 1))
+            _schur_scaled_upper(m, self._dinv, h)
+            mu = cold_eigh(h, k - 1, vectors=False)[0]
+            self._check_reduced(mu[k - 2])
+            vals[1:] = 1.0 / mu
+        return vals
+
+    def _mass(self, params, k) -> tuple[np.ndarray, int, np.ndarray]:
+        """Checked coefficients, k, and the upper triangle of M (N, N)."""
         a = self._params(params)
         k = check_int(k, "k (number of eigenpairs)", minimum=1)
         if k > self.nbasis:
@@ -153,39 +223,46 @@ class HarmonicModel(SpectralModel):
         m = self.table.mass_matrix(a, symmetrize=False)
         if not m[0, 0] > 0:
             raise NotPositiveError(f"the area a_00*sqrt(4pi) = {a[0] * np.sqrt(4 * np.pi):.6g} is not positive")
-        n = self.nbasis
-        vals = np.zeros(k)
-        vecs = np.zeros((n, k))
-        vecs[0, 0] = 1.0 / np.sqrt(m[0, 0])
-        if k > 1:
-            h = np.empty((n - 1, n - 1))
-            _schur_scaled_upper(m, self._dinv, h)
-            mu, u = scipy.linalg.eigh(h, lower=False, subset_by_index=[n - k, n - 2], driver="evr",
-                                      overwrite_a=True, check_finite=False)
-            if not mu[0] > 0:
-                raise NotPositiveError(
-                    f"the mass matrix is not positive definite (reduced eigenvalue {mu[0]:.3g}); rho is negative "
-                    "or nearly so somewhere")
-            lam = 1.0 / mu[::-1]
-            vr = (u[:, ::-1] * self._dinv[:, None]) * np.sqrt(lam)[None, :]
-            vecs[1:, 1:] = vr
-            vecs[0, 1:] = -(m[0, 1:] @ vr) / m[0, 0]
-            vals[1:] = lam
-        return SpectrumResult(vals, vecs, lmax=self.lmax, lmax_factor=self.lmax_factor)
+        return a, k, m
+
+    @staticmethod
+    def _check_reduced(mu_min: float) -> None:
+        if not mu_min > 0:
+            raise NotPositiveError(
+                f"the mass matrix is not positive definite (reduced eigenvalue {mu_min:.3g}); rho is negative "
+                "or nearly so somewhere")
+
+    def _warm_usable(self, start, a: np.ndarray, k: int) -> bool:
+        """Whether ``start`` comes from this model with as many eigenpairs and from a ρ within the gate of a."""
+        if not (isinstance(start, SpectrumResult) and start.reduced_vectors is not None and start.k == k
+                and start.coefficients is not None and start.coefficients.shape == a.shape
+                and start.reduced_vectors.shape[0] == self.nbasis - 1 and start.reduced_vectors.shape[1] > k - 1):
+            return False
+        return bool(np.linalg.norm(a - start.coefficients) <= WARM_GATE * np.linalg.norm(a))
+
+    @property
+    def grid_forms(self) -> GridQuadraticForms:
+        """The quadrature of the quadratic forms v_qᵀ G_k v_q (built on first use)."""
+        if self._grid_forms is None:
+            self._grid_forms = GridQuadraticForms(self.lmax, self.lmax_factor)
+        return self._grid_forms
 
     def jacobian(self, spec: Spectrum) -> np.ndarray:
-        """∂λ_i/∂a_k = −λ_i v_iᵀ G_k v_i, as a (k, nparams) array."""
-        q = self.table.quadratic_forms(spec.eigenvectors)
+        """∂λ_i/∂a_k = −λ_i v_iᵀ G_k v_i, as a (k, nparams) array.
+
+        The quadratic forms come from the exact GLQ quadrature (:mod:`shspec.galerkin.gridforms`), equal to the
+        Gaunt-table contraction to rounding and 6-20× faster than it at the sizes of a fit
+        (``benchmarks/bench_iteration.py``)."""
+        q = self.grid_forms(spec.eigenvectors)
         return -(q * spec.eigenvalues[None, :]).T
 
     def contract(self, spec: Spectrum, coef: np.ndarray) -> np.ndarray:
-        """Σ_i c_i ∂λ_i/∂a = −Σ_ij G_ijk B_ij with B = V diag(c λ) Vᵀ: one pass over the table, (nparams,)."""
+        """Σ_i c_i ∂λ_i/∂a = −∫ Y_k Σ_i c_i λ_i f_i² dΩ (f_i the eigenfunctions), by the same quadrature as
+        :meth:`jacobian`, (nparams,)."""
         coef = np.asarray(coef, dtype=float)
         if coef.shape != spec.eigenvalues.shape:
             raise InvalidArgumentError(f"coef must have shape {spec.eigenvalues.shape}, got {coef.shape}")
-        v = spec.eigenvectors
-        b = (v * (coef * spec.eigenvalues)[None, :]) @ v.T
-        return -self.table.contract(b)
+        return -self.grid_forms.weighted(spec.eigenvectors, coef * spec.eigenvalues)
 
     # -- what the inverse solver asks of a model (shspec.model.SpectralModel) -------------------------------------
 
@@ -386,7 +463,9 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
     if truncation_tol is not None and not (np.isfinite(truncation_tol) and truncation_tol > 0):
         raise InvalidArgumentError(f"truncation_tol must be None or finite and > 0, got {truncation_tol!r}")
     # degrees above 2·Lb do not couple two basis functions: dropping them changes nothing
-    model = HarmonicModel(lmax, min(la, 2 * lmax), table=table, cache_dir=cache_dir, build=build)
+    # the positivity of the cut factor is checked below (with the cause in the message): the model need not again
+    model = HarmonicModel(lmax, min(la, 2 * lmax), table=table, cache_dir=cache_dir, build=build,
+                          check_positive=False)
     cut = factor.truncated(model.lmax_factor)
     try:
         low = cut.check_positive()
@@ -435,7 +514,7 @@ def _basis_truncation(model: HarmonicModel, cut: ConformalFactor, result: Spectr
     k = min(result.eigenvalues.size, smaller.nbasis)
     if k < 2:
         return float("nan")
-    coarse = smaller.spectrum(cut.truncated(smaller.lmax_factor), k).eigenvalues[1:]
+    coarse = smaller.eigenvalues(cut.truncated(smaller.lmax_factor), k)[1:]
     fine = result.eigenvalues[1:k]
     return float(np.max(np.abs(coarse - fine) / fine))
 

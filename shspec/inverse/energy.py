@@ -126,6 +126,7 @@ class Objective:
         self.reg_matrix = model.regularizer(reg)
         self._reg_free = None if self.reg_matrix is None else self.reg_matrix[:, parametrization.free]
         self.evaluations = 0
+        self._last: Spectrum | None = None
 
     @property
     def nfree(self) -> int:
@@ -142,7 +143,9 @@ class Objective:
     def evaluate(self, x, jacobian: bool = False) -> Evaluation:
         """Energy, residuals, gradient (and Jacobian if asked) at free values x (nfree,)."""
         par = self.parametrization
-        spec: Spectrum = self.model.spectrum(par.params(x), self.target.size)
+        # successive points of a fit are close: the last spectrum may warm-start the next (the model decides)
+        spec: Spectrum = self.model.spectrum(par.params(x), self.target.size, start=self._last)
+        self._last = spec
         self.evaluations += 1
         lam = spec.eigenvalues
         diff = lam - self.target

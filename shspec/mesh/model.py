@@ -90,7 +90,7 @@ class MeshModel(SpectralModel):
         """M(c) = diag(c · vertex_areas), (n, n), length unit squared."""
         return sp.diags(self._factors(c) * self.vertex_areas).tocsr()
 
-    def spectrum(self, params, k: int) -> Spectrum:
+    def spectrum(self, params, k: int, *, start: Spectrum | None = None) -> Spectrum:
         """First k eigenpairs of L v = λ M(c) v (exactly k; see :mod:`shspec.mesh.eigen` on cut multiplets).
 
         Parameters
@@ -99,6 +99,8 @@ class MeshModel(SpectralModel):
             Conformal factors c > 0.
         k : int
             Number of eigenpairs, 1 ≤ k < n.
+        start : Spectrum, optional
+            Ignored: the sparse shift-invert solve gains nothing from it (see :meth:`SpectralModel.spectrum`).
 
         Returns
         -------
