@@ -11,6 +11,8 @@ regularizer then smooths s.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -22,6 +24,8 @@ from ..sphere.random import random_coefficients
 from .bridge import fit_harmonic, mesh_band_limit
 from .cotan import cotan_stiffness, vertex_areas
 from .eigen import EigenOptions, eigenpairs
+from .io import save_mesh
+from .refine import align_vertex_field
 from .figures import plot_spectra_validation, plot_vertex_factors
 from .triangle_mesh import TriangleMesh
 
@@ -262,25 +266,53 @@ class MeshModel(SpectralModel):
         return ConformalFactor(fit_harmonic(self.mesh, c, self.lmax_factor).coefficients, name="fit (harmonic)")
 
     def compare(self, params: np.ndarray, target) -> dict:
-        """With the target's per-vertex truth (``target.factors``, e.g. its cMCF factors on this mesh): the
+        """With the target's per-vertex truth (``target.factors`` on ``target.sphere``, its cMCF factors): the
         area-weighted relative L2 error of the factors, the RMS and the Pearson correlation of their logarithms over
-        the vertices, and both ranges.  No Möbius or O(3) alignment: the factors live on the same mesh."""
+        the vertices, and both ranges.
+
+        On the target's own sphere (same vertex count and positions) the factors are compared vertex by vertex: the
+        fit lives on that mesh, no alignment applies.  On another sphere mesh (adaptive refinement, a generic
+        icosphere) the fitted log factors are first Möbius-centred and mapped by the best element of O(3) onto the
+        truth's vertices (:func:`~shspec.mesh.refine.align_vertex_field`); ``aligned`` says which was done."""
         truth = getattr(target, "factors", None)
-        if truth is None or np.shape(truth) != (self.nparams,):
+        sphere = getattr(target, "sphere", None)
+        if truth is None or sphere is None or np.shape(truth) != (sphere.nvertices,):
             return {}
         c, truth = self._factors(params), np.asarray(truth, dtype=float)
-        w = self.vertex_areas
-        lc, lt = np.log(c), np.log(truth)
-        return {"factor_error": float(np.sqrt(w @ (c - truth) ** 2 / (w @ truth ** 2))),
+        lt = np.log(truth)
+        same = self._on(sphere)
+        if same:
+            lc, w = np.log(c), self.vertex_areas
+        else:
+            lc = align_vertex_field(self.mesh, np.log(c), sphere, lt).values
+            w = vertex_areas(sphere)
+        ct = np.exp(lc)
+        return {"factor_error": float(np.sqrt(w @ (ct - truth) ** 2 / (w @ truth ** 2))),
                 "log_rms": float(np.sqrt(w @ (lc - lt) ** 2 / w.sum())),
                 "log_correlation": float(np.corrcoef(lc, lt)[0, 1]),
+                "aligned": not same,
                 "fitted_range": [float(c.min()), float(c.max())], "truth_range": [float(truth.min()), float(truth.max())]}
+
+    def _on(self, sphere) -> bool:
+        """Whether ``sphere`` is this model's own mesh (same vertices in the same order)."""
+        return (isinstance(sphere, TriangleMesh) and sphere.nvertices == self.nparams
+                and np.allclose(sphere.vertices, self.mesh.vertices, atol=1e-12))
+
+    def write_files(self, params: np.ndarray, directory) -> list:
+        """Write the fitted per-vertex factors (factors.txt, one per line, vertex order of the model's mesh: a valid
+        ``--init`` file) and the model's sphere mesh (sphere.obj) into ``directory``; returns the file names."""
+        c = self._factors(params)
+        directory = Path(directory)
+        np.savetxt(directory / "factors.txt", c, fmt="%.17g",
+                   header=f"per-vertex conformal factors c of {self.describe()}, vertex order of sphere.obj")
+        save_mesh(self.mesh, directory / "sphere.obj")
+        return ["factors.txt", "sphere.obj"]
 
     def figures(self, params: np.ndarray, target) -> dict:
         """Hammer maps of the fitted factors (with the truth and their ratio when the target has per-vertex
         factors), and the study's validation of spectra when the target has its mesh."""
         truth = getattr(target, "factors", None)
-        truth = truth if truth is not None and np.shape(truth) == (self.nparams,) else None
+        truth = truth if truth is not None and self._on(getattr(target, "sphere", None)) else None
         out = {"vertex_factors.png": plot_vertex_factors(self.mesh, self._factors(params), truth)}
         if truth is not None and getattr(target, "mesh", None) is not None:
             k = min(np.size(target.eigenvalues), self.nparams - 1)
