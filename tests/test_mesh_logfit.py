@@ -98,3 +98,36 @@ def test_factors_spanning_1e4_recovered_from_their_own_spectrum():
     err = np.linalg.norm(B.T @ (np.log(result.best.params) - s_true)) / np.sqrt(n)
     assert result.best.relative_residual < 1e-10
     assert err < 1e-3 and err < 0.1 * np.linalg.norm(B.T @ (start - s_true)) / np.sqrt(n)
+
+
+def test_log_step_beyond_double_precision_is_a_rejected_point():
+    from shspec.errors import NotPositiveError
+
+    par = Parametrization.at(np.ones(3), np.arange(3), "exp")
+    with pytest.raises(NotPositiveError, match="overflows"):
+        par.params(np.array([0.0, 800.0, 0.0]))
+
+
+def test_cli_fits_log_factors_with_auto_numeig_and_adaptive(tmp_path):
+    import json
+
+    from shspec.cli import main
+
+    out = tmp_path / "auto"
+    assert main(["fit", "--target", "star:3,3,0.5", "--subdivisions", "1", "--model", "mesh", "--numeig", "auto",
+                 "--numeig-tol", "0.05", "--reg", "0.01", "--starts", "1", "--max-iter", "3", "--quiet",
+                 "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    auto = summary["numeig_auto"]
+    assert summary["numeig"] == auto["chosen"] < auto["of"] and auto["largest_kept_error"] <= 0.05
+    assert auto["first_dropped_error"] > 0.05
+    assert "exp reg=dirichlet" in summary["model"] and summary["aligned"] is False
+    c = np.loadtxt(out / "factors.txt")
+    assert c.shape == (42,) and c.min() == pytest.approx(summary["fitted_range"][0])
+    out2 = tmp_path / "adaptive"
+    assert main(["fit", "--target", "star:3,3,0.5", "--subdivisions", "2", "--model", "mesh", "--numeig", "20",
+                 "--adaptive", "--adaptive-start", "1", "--reg", "0.01", "--starts", "1", "--max-iter", "3",
+                 "--quiet", "--out", str(out2)]) == 0
+    summary = json.loads((out2 / "summary.json").read_text())
+    assert summary["adaptive"]["sizes"] == [42, 84, 162] and summary["aligned"] is True
+    assert np.loadtxt(out2 / "factors.txt").shape == (162,)
