@@ -236,7 +236,7 @@ def align_vertex_field(sphere_a: TriangleMesh, s_a, sphere_b: TriangleMesh, s_b,
 
     Sphere a is Möbius-centred with the areas exp(s_a)·(vertex areas) as weights (the truth's cMCF sphere is
     centred with its surface's areas: the same normalization); s_a is expanded in harmonics of degree ``lmax``
-    (default: what sphere a determines, at most 16) and evaluated at R·x_b; R minimizes the area-weighted squared
+    (default: what sphere a determines, at most 10) and evaluated at R·x_b; R minimizes the area-weighted squared
     difference to s_b over the 24 rotations of the octahedral group and their mirrors, refined by Nelder–Mead on
     the best four.
 
@@ -257,7 +257,7 @@ def align_vertex_field(sphere_a: TriangleMesh, s_a, sphere_b: TriangleMesh, s_b,
     s_a = _check_values(sphere_a, s_a, "s_a")
     s_b = _check_values(sphere_b, s_b, "s_b")
     centred = center_mesh(sphere_a, np.exp(s_a - s_a.max()) * vertex_areas(sphere_a)).sphere
-    la = mesh_band_limit(sphere_a.nvertices, 16 if lmax is None else lmax)
+    la = mesh_band_limit(sphere_a.nvertices, 10 if lmax is None else lmax)
     coef = fit_harmonic(centred, s_a, la).coefficients
     w = vertex_areas(sphere_b)
     w = w / w.sum()
@@ -282,7 +282,7 @@ def align_vertex_field(sphere_a: TriangleMesh, s_a, sphere_b: TriangleMesh, s_b,
             return misfit(Rotation.from_rotvec(v).as_matrix() @ R0)
 
         res = scipy.optimize.minimize(cost, np.zeros(3), method="Nelder-Mead",
-                                      options={"xatol": 1e-4, "fatol": 1e-10, "maxiter": 400})
+                                      options={"xatol": 1e-4, "fatol": 1e-10, "maxiter": 200})
         if res.fun < best[0]:
             best = (float(res.fun), Rotation.from_rotvec(res.x).as_matrix() @ R0)
     R = best[1]
