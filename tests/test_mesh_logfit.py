@@ -131,3 +131,7 @@ def test_cli_fits_log_factors_with_auto_numeig_and_adaptive(tmp_path):
     summary = json.loads((out2 / "summary.json").read_text())
     assert summary["adaptive"]["sizes"] == [42, 84, 162] and summary["aligned"] is True
     assert np.loadtxt(out2 / "factors.txt").shape == (162,)
+    out3 = tmp_path / "all"
+    assert main(["fit", "--target", "star:3,3,0.5", "--subdivisions", "1", "--model", "mesh", "--numeig", "all",
+                 "--starts", "1", "--max-iter", "2", "--quiet", "--out", str(out3)]) == 0
+    assert json.loads((out3 / "summary.json").read_text())["numeig"] == 41

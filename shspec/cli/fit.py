@@ -98,7 +98,9 @@ def register(subparsers) -> None:
     p.add_argument("--numeig", type=_numeig, default=256,
                    help="eigenvalues matched, lambda_0 = 0 included (a spectrum: file's first NUMEIG; all if fewer); "
                    "'auto' for mesh targets: those whose estimated discretization error (against one 4-to-1 "
-                   "subdivision of the mesh) is at most --numeig-tol, of at most min(n/4, 300)")
+                   "subdivision of the mesh) is at most --numeig-tol, of at most min(n/4, 300); 'all' for mesh "
+                   "targets: n - 1, every eigenvalue of the n-vertex mesh (on bunny_600, R = 0.05, all 599 gave "
+                   "log-factor correlation 0.997 against 0.48 with 100)")
     p.add_argument("--numeig-tol", type=float, default=0.01,
                    help="relative eigenvalue error tolerated by --numeig auto")
     p.add_argument("--schedule", default="auto",
@@ -167,12 +169,12 @@ def _schedule(text: str, numeig: int, lmax_factor: int):
 
 
 def _numeig(text: str):
-    if text == "auto":
+    if text in ("auto", "all"):
         return text
     try:
         return int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"--numeig is an integer or 'auto', got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"--numeig is an integer, 'auto' or 'all', got {text!r}") from None
 
 
 def _auto_numeig(args, target: Target) -> tuple[Target, dict]:
@@ -199,11 +201,15 @@ def _auto_numeig(args, target: Target) -> tuple[Target, dict]:
     return cut, report
 
 
+def _mesh_size(args) -> int:
+    """Vertices of the mesh of a star:/mesh: target."""
+    scheme, _, arg = args.target.partition(":")
+    return load_mesh(arg).nvertices if scheme == "mesh" else 10 * 4 ** args.subdivisions + 2
+
+
 def _auto_cap(args) -> int:
     """How many eigenvalues --numeig auto considers: min(n/4, 300) for the target mesh's n vertices."""
-    scheme, _, arg = args.target.partition(":")
-    n = load_mesh(arg).nvertices if scheme == "mesh" else 10 * 4 ** args.subdivisions + 2
-    return max(2, min(n // 4, 300))
+    return max(2, min(_mesh_size(args) // 4, 300))
 
 
 def _fit(args) -> int:
@@ -211,11 +217,13 @@ def _fit(args) -> int:
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out} is a file; give a directory")
     auto = args.numeig == "auto"
-    if auto and args.target.partition(":")[0] not in ("star", "mesh"):
-        raise InvalidArgumentError("--numeig auto needs a mesh target (star:... or mesh:...)")
+    if args.numeig in ("auto", "all") and args.target.partition(":")[0] not in ("star", "mesh"):
+        raise InvalidArgumentError(f"--numeig {args.numeig} needs a mesh target (star:... or mesh:...)")
     numeig = args.numeig
     if auto:
         numeig = _auto_cap(args)
+    elif numeig == "all":
+        numeig = _mesh_size(args) - 1
     target = parse_target(args.target, lmax=args.lmax, numeig=numeig, lmax_factor=args.lmax_factor,
                           source=args.source, subdivisions=args.subdivisions)
     extra = {}
