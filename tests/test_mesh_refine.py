@@ -73,3 +73,20 @@ def test_eigenvalue_errors_against_the_subdivision_and_auto_numeig():
     assert np.all(err[1:K] <= 0.5 * (err[1:9].max() + err[9:16].min())) and err[K] > err[1:K].max()
     with pytest.raises(InvalidArgumentError, match="first eigenvalue"):
         trusted_numeig(err, 1e-30)
+
+
+def test_interpolation_on_another_sphere_mesh_is_linear_on_faces():
+    from shspec.mesh.refine import _interpolate
+
+    a = icosphere(2)
+    pts = icosphere(3).vertices
+    # values x + 2y − z at the vertices: on each face the interpolant at a direction is Σ b_k f(p_k), b the
+    # barycentric coordinates of the ray's crossing point, which is itself a linear function: f(crossing)
+    vals = a.vertices @ np.array([1.0, 2.0, -1.0])
+    out = _interpolate(a, vals, pts)
+    # the crossing point is pts scaled by 1/(n̂·pts) of its face: f(crossing) = f(pts) × that scale
+    assert np.all(np.abs(out) <= np.abs(pts @ np.array([1.0, 2.0, -1.0])) * 1.0 + 1e-12)
+    np.testing.assert_allclose(_interpolate(a, vals, a.vertices), vals, atol=1e-12)
+    ratio = out / (pts @ np.array([1.0, 2.0, -1.0]))
+    ok = np.abs(pts @ np.array([1.0, 2.0, -1.0])) > 0.1
+    assert np.all((ratio[ok] > 0.95) & (ratio[ok] <= 1.0 + 1e-12))  # the chord lies inside the sphere
