@@ -200,9 +200,9 @@ register(Experiment(
     reproduces="the study's Sections 3.2.2 (regularized fit, Figure 1, R = 0.05) and 3.2.3 (recursive fit, Figure "
                "2, R = 0.1), and its open problem A.5 (adaptive refinement)",
     defaults={"runs": ["bunny_600:0.05", "spot_600:0.05", "blub_600:0.05"], "mesh_dir": "/work/shared/data/meshes",
-              "numeig": 599, "max_iter": 100, "optimizer": "lm", "seed": 0, "path": [1.0, 0.1, 0.01, 0.001, 0.0001],
+              "numeig": 599, "max_iter": 300, "optimizer": "lbfgs", "seed": 0, "path": [1.0, 0.1, 0.01, 0.001, 0.0001],
               "recursive_reg": 0.1, "adaptive_subdivisions": 2, "embed_iterations": 100, "distance_samples": 5000},
     quick={"runs": ["bunny_600:0.05"], "mesh_dir": "/work/shared/data/meshes", "numeig": 12, "max_iter": 5,
-           "optimizer": "lm", "seed": 0, "path": [0.05], "recursive_reg": 0.1, "adaptive_subdivisions": 1,
+           "optimizer": "lbfgs", "seed": 0, "path": [0.05], "recursive_reg": 0.1, "adaptive_subdivisions": 1,
            "embed_iterations": 10, "distance_samples": 500},
     expected_minutes=8.0, run=run))

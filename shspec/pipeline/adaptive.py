@@ -51,6 +51,10 @@ class AdaptiveOptions:
         Vertex count ratio between stages.
     reg_kind : str
         The regularizer of every stage (:data:`~shspec.mesh.model.REGULARIZER_KINDS`).
+    numeig_fraction : float
+        Stages before the last match at most this fraction of their mesh's vertex count in eigenvalues: the top of
+        a coarse mesh's spectrum is its own discretization, not the surface's (the last stage matches all of the
+        target's, at most n − 1).
     fit : FitOptions
         The options of every stage's fit (the first stage's schedule and starts; later stages start from the
         refined previous result in one stage).
@@ -60,6 +64,7 @@ class AdaptiveOptions:
     nvertices: int | None = None
     growth: float = 2.0
     reg_kind: str = "dirichlet"
+    numeig_fraction: float = 0.25
     fit: FitOptions = field(default_factory=FitOptions)
 
     def __post_init__(self):
@@ -67,6 +72,8 @@ class AdaptiveOptions:
         check_int(self.nvertices, "AdaptiveOptions.nvertices", allow_none=True, minimum=12)
         if self.reg_kind not in REGULARIZER_KINDS:
             raise InvalidArgumentError(f"reg_kind must be one of {REGULARIZER_KINDS}, got {self.reg_kind!r}")
+        if not 0 < self.numeig_fraction <= 1:
+            raise InvalidArgumentError(f"numeig_fraction must be in (0, 1], got {self.numeig_fraction}")
         if not isinstance(self.fit, FitOptions):
             raise InvalidArgumentError("AdaptiveOptions.fit must be FitOptions")
 
@@ -132,6 +139,8 @@ def adaptive_fit(target: Target, options: AdaptiveOptions | None = None, *, log=
             init = np.exp(s)
         model = MeshModel(sphere, transform="exp", reg_kind=opt.reg_kind)
         k = min(target.numeig, sphere.nvertices - 1)
+        if i < len(sizes) - 1:
+            k = min(k, max(2, int(opt.numeig_fraction * sphere.nvertices)))
         stage_target = target if k == target.numeig else Target(target.name, target.eigenvalues[:k], area=target.area,
                                                                 truth=target.truth, mesh=target.mesh,
                                                                 sphere=target.sphere, factors=target.factors,
