@@ -203,6 +203,6 @@ register(Experiment(
               "numeig": 599, "max_iter": 300, "optimizer": "lbfgs", "seed": 0, "path": [1.0, 0.1, 0.01, 0.001, 0.0001],
               "recursive_reg": 0.1, "adaptive_subdivisions": 2, "embed_iterations": 100, "distance_samples": 5000},
     quick={"runs": ["bunny_600:0.05"], "mesh_dir": "/work/shared/data/meshes", "numeig": 12, "max_iter": 5,
-           "optimizer": "lbfgs", "seed": 0, "path": [0.05], "recursive_reg": 0.1, "adaptive_subdivisions": 1,
+           "optimizer": "lbfgs", "seed": 0, "path": [0.05], "recursive_reg": 0.1, "adaptive_subdivisions": 2,
            "embed_iterations": 10, "distance_samples": 500},
     expected_minutes=8.0, run=run))
