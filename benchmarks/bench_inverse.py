@@ -6,6 +6,9 @@ Sections (each written to the JSON as soon as it is done, so a partial run still
   stage and the numeig ramp (16, 36, 64, 100, 120): success rate, median time per start, error after alignment.
 * ``optimizers``: LM, L-BFGS, BFGS and gradient descent from the same start on a small problem that LM solves.
 * ``study``: the study's harmonic setting Lb = 30, La = 15 (256 coefficients), 256 eigenvalues, R = 0 and 1e-6.
+* ``mesh_log``: log-factor PL fits with the study's Dirichlet R of bunny_600 on its own cMCF sphere (targets (a) pl
+  and (b) cmcf; LM, L-BFGS, linear factors), the adaptive fit from an icosphere, bunny_1200 and the 8000-vertex bunny.
+* ``mesh_all``: the same with every eigenvalue of the mesh (K = n − 1), LM against L-BFGS at 600 and 1200 vertices.
 * ``bunny``: the PL fit of bunny_600 / bunny_1200 started from its own cMCF sphere (study Figures 2 and 1,
   R = 0.1 and 0.05), against the baseline of the round start.
 
@@ -36,6 +39,7 @@ from shspec.inverse import (FitOptions, align, blob_factor, fit, harmonic_target
 from shspec.sphere.random import random_centred_coefficients  # noqa: E402
 from shspec.inverse import plots  # noqa: E402
 from shspec.mesh.figures import plot_spectra_validation, plot_vertex_factors  # noqa: E402
+from shspec.experiments.fitting import vertex_factor_errors  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "results" / "bench_inverse.json"
@@ -60,7 +64,7 @@ def _summary(result, truth=None):
     return out
 
 
-_SECTIONS = ("blob", "blob_hops", "optimizers", "study", "bunny")
+_SECTIONS = ("blob", "blob_hops", "optimizers", "study", "bunny", "mesh_log", "mesh_all")
 
 
 def _save(report):
@@ -172,6 +176,102 @@ def bench_bunny(report, max_iter, numeig):
         _save(report)
 
 
+def _load_4pi(name):
+    from shspec.mesh.io import load_mesh
+
+    mesh = load_mesh(MESHES / f"{name}.obj")
+    return mesh.with_vertices(mesh.vertices * np.sqrt(4 * np.pi / mesh.area()))
+
+
+def _mesh_case(target, model, options, init=None):
+    """One mesh fit: time, residual, the summary's factor errors and, for exactly representable targets, the RMS log
+    error over the directions the eigenvalues determine (shspec.inverse.identifiability.determined_directions)."""
+    from shspec.inverse.identifiability import determined_directions
+
+    result = fit(target, model, options, init=init)
+    best = result.best
+    out = {"model": model.describe(), "optimizer": options.optimizer, "R": options.reg, "numeig": target.numeig,
+           "time_s": result.seconds, "iterations": best.iterations, "status": best.status,
+           "relative_residual": best.relative_residual, "energy": best.energy,
+           "load_average": list(os.getloadavg())}
+    cmp = model.compare(best.params, target)
+    out.update({k: cmp[k] for k in ("log_rms", "log_correlation", "fitted_range", "truth_range", "aligned") if k in cmp})
+    if model._on(target.sphere):
+        out["log_correlation_area_weighted"] = vertex_factor_errors(model.vertex_areas, best.params,
+                                                                    target.factors)["log_correlation"]
+    if target.source == "cmcf" and model._on(target.sphere):
+        B = determined_directions(model, target.factors, target.numeig)
+        e = np.log(best.params) - np.log(target.factors)
+        out["determined_directions"] = int(B.shape[1])
+        out["log_rms_determined"] = float(np.linalg.norm(B.T @ e) / np.sqrt(e.size))
+    return out, result
+
+
+def bench_mesh_log(report, quick):
+    """Log-factor PL fits (Dirichlet R, the study's): bunny_600 on its own cMCF sphere, targets (a) pl and (b) cmcf;
+    LM against L-BFGS and linear factors; the adaptive fit from an icosphere; 1200 and 8000 vertices."""
+    from shspec.mesh.model import MeshModel
+    from shspec.pipeline.adaptive import AdaptiveOptions, adaptive_fit
+
+    k = 40 if quick else 100
+    section = {"setting": f"area 4pi, {k} eigenvalues, relative weights, Dirichlet R s'Ls/2, one start from the "
+                          "constant factors (amplitude 1e-3), no schedule unless said; times are wall times on a "
+                          "2-core machine shared with other engineers (approximate)"}
+    report["mesh_log"] = section
+    mesh = _load_4pi("bunny_600")
+    tgt = {src: mesh_target(mesh, 12, k, 6, name="bunny_600", source=src) for src in ("pl", "cmcf")}
+    R = 0.05
+    base = FitOptions(schedule=(), starts=1, basin_hops=0, start_amplitude=1e-3, max_iter=30 if quick else 150)
+    cases = [("a_lm_log", "pl", "exp", "lm", R), ("a_lm_linear", "pl", "identity", "lm", R),
+             ("a_lbfgs_log", "pl", "exp", "lbfgs", R), ("b_lm_log_R0", "cmcf", "exp", "lm", 0.0),
+             ("b_lm_log", "cmcf", "exp", "lm", R)]
+    for label, src, transform, optimizer, reg in cases:
+        model = MeshModel(tgt[src].sphere, transform=transform, reg_kind="dirichlet")
+        opts = FitOptions(**{**base.__dict__, "optimizer": optimizer, "reg": reg,
+                             "max_iter": base.max_iter * (3 if optimizer == "lbfgs" else 1)})
+        section[label], _ = _mesh_case(tgt[src], model, opts)
+        _save(report)
+    t0 = time.perf_counter()
+    ad = adaptive_fit(tgt["pl"], AdaptiveOptions(subdivisions=2, reg_kind="dirichlet",
+                                                 fit=FitOptions(**{**base.__dict__, "reg": R})))
+    cmp = ad.result.model.compare(ad.result.best.params, ad.result.target)
+    section["a_adaptive_icosphere"] = {**ad.to_dict(), "time_s": time.perf_counter() - t0,
+                                       **{k2: cmp[k2] for k2 in ("log_rms", "log_correlation", "fitted_range",
+                                                                 "aligned")}}
+    own = section["a_lm_log"]["log_rms"]
+    section["a_adaptive_icosphere"]["log_rms_ratio_to_own_sphere"] = cmp["log_rms"] / own
+    _save(report)
+    for name, optimizer, iters in (("bunny_1200", "lm", 60), ("bunny_1200", "lbfgs", 150), ("bunny", "lbfgs", 20)):
+        if quick and name == "bunny":
+            continue
+        t = mesh_target(_load_4pi(name), 12, k, 6, name=name)
+        model = MeshModel(t.sphere, transform="exp", reg_kind="dirichlet")
+        opts = FitOptions(**{**base.__dict__, "optimizer": optimizer, "reg": R, "max_iter": iters})
+        section[f"{name}_{optimizer}"], _ = _mesh_case(t, model, opts)
+        section[f"{name}_{optimizer}"]["nvertices"] = t.sphere.nvertices
+        _save(report)
+
+
+def bench_mesh_all(report, quick):
+    """Every eigenvalue of the mesh (K = n − 1), R = 0.05 (Dirichlet), log factors on the own cMCF sphere: LM
+    against L-BFGS at 600 and 1200 vertices, target (a)."""
+    from shspec.mesh.model import MeshModel
+
+    section = {"setting": "K = n - 1 cotan eigenvalues of the mesh (target (a)), area 4pi, relative weights, "
+                          "Dirichlet R = 0.05, one start from the constant factors, log factors; wall times on a "
+                          "shared 2-core machine (approximate)"}
+    report["mesh_all"] = section
+    for name in ("bunny_600",) if quick else ("bunny_600", "bunny_1200"):
+        mesh = _load_4pi(name)
+        t = mesh_target(mesh, 12, mesh.nvertices - 1, 6, name=name)
+        for optimizer, iters in (("lm", 60), ("lbfgs", 300)):
+            model = MeshModel(t.sphere, transform="exp", reg_kind="dirichlet")
+            opts = FitOptions(schedule=(), starts=1, basin_hops=0, start_amplitude=1e-3, reg=0.05,
+                              optimizer=optimizer, max_iter=10 if quick else iters)
+            section[f"{name}_{optimizer}"], _ = _mesh_case(t, model, opts)
+            _save(report)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer starts and iterations")
@@ -199,6 +299,10 @@ def main(argv=None):
             bench_study(report, 20 if args.quick else 60)
         if "bunny" in sections:
             bench_bunny(report, 15 if args.quick else 40, 60 if args.quick else 100)
+        if "mesh_log" in sections:
+            bench_mesh_log(report, args.quick)
+        if "mesh_all" in sections:
+            bench_mesh_all(report, args.quick)
     report["machine"]["load_average_end"] = list(os.getloadavg())
     report["total_time_s"] = time.perf_counter() - t0
     _save(report)

@@ -176,6 +176,11 @@ class SpectralModel(ABC):
         """Model-specific figures of a fit, {file name: matplotlib Figure}; default: none."""
         return {}
 
+    def write_files(self, params: np.ndarray, directory) -> list:
+        """Write model-specific result files (a mesh model: its per-vertex factors and sphere mesh) into the existing
+        ``directory``; returns their names.  Default: none."""
+        return []
+
 
 def regularization_weight(reg) -> float:
     """A regularization weight R as a float, checked to be finite and ≥ 0 (InvalidArgumentError otherwise)."""

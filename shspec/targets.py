@@ -18,13 +18,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse as sp
 
 from .checks import check_int
 from .errors import InvalidArgumentError
 from .galerkin.solver import HarmonicModel
 from .mesh.bridge import fit_harmonic, mesh_band_limit
 from .mesh.cmcf import cmcf
-from .mesh.eigen import mesh_spectrum
+from .mesh.cotan import cotan_stiffness, vertex_areas
+from .mesh.eigen import eigenpairs, mesh_spectrum
 from .mesh.io import load_mesh
 from .mesh.shapes import star_surface
 from .mesh.triangle_mesh import TriangleMesh
@@ -52,9 +54,11 @@ BLOB_HARMONIC = {
     (6, -1): 0.02,
 }
 
-#: Where a mesh target's spectrum comes from: the cotan spectrum of the mesh, or the Galerkin spectrum of its
-#: cMCF factors expanded in harmonics of degree La.
-TARGET_SOURCES = ("pl", "harmonic")
+#: Where a mesh target's spectrum comes from: the cotan spectrum of the mesh ("pl"); the cotan spectrum of its cMCF
+#: sphere carrying the cMCF factors, M = diag(c)·M_sphere ("cmcf": exactly what a per-vertex fit on that sphere
+#: can represent, a zero-residual test of the solver); or the Galerkin spectrum of its cMCF factors expanded in
+#: harmonics of degree La ("harmonic").
+TARGET_SOURCES = ("pl", "cmcf", "harmonic")
 
 
 def blob_factor(lmax: int = 6) -> ConformalFactor:
@@ -86,7 +90,7 @@ class Target:
     factors : (n,) array or None
         Its per-vertex cMCF factors (mesh targets): the PL truth.
     source : str
-        "harmonic", "pl", or "file".
+        "harmonic", "pl", "cmcf" (see :data:`TARGET_SOURCES`) or "file".
     """
 
     name: str
@@ -150,7 +154,7 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
         Number of eigenvalues.
     lmax_factor : int
         Degree La of the harmonic expansion of the cMCF factors (the harmonic truth).
-    source : {"pl", "harmonic"}
+    source : {"pl", "cmcf", "harmonic"}
         See :data:`TARGET_SOURCES`.
     """
     if not isinstance(mesh, TriangleMesh):
@@ -160,8 +164,12 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
     flow = cmcf(mesh)
     la = mesh_band_limit(mesh.nvertices, lmax_factor)
     truth = ConformalFactor(fit_harmonic(flow.sphere, flow.factors, la).coefficients, name=f"{name} (cMCF)")
-    if source == "pl":
-        lam = mesh_spectrum(mesh, numeig, whole_multiplets=False).eigenvalues
+    if source in ("pl", "cmcf"):
+        if source == "pl":
+            lam = mesh_spectrum(mesh, numeig, whole_multiplets=False).eigenvalues
+        else:
+            lam = eigenpairs(cotan_stiffness(flow.sphere), sp.diags(flow.factors * vertex_areas(flow.sphere)),
+                             numeig).eigenvalues
         lam[0] = 0.0  # the solver's λ₀ is 0 to rounding; the target's must be exactly 0
     else:
         lam = HarmonicModel(lmax, la).spectrum(truth, numeig).eigenvalues
@@ -232,8 +240,8 @@ def parse_target(text: str, *, lmax: int, numeig: int, lmax_factor: int, source:
         an icosphere), ``mesh:PATH`` (a mesh file) or ``spectrum:FILE``.
     lmax, numeig, lmax_factor : int
         Basis band limit, number of eigenvalues, factor degree.
-    source : {"pl", "harmonic"}
-        Spectrum of mesh targets (star, mesh).
+    source : {"pl", "cmcf", "harmonic"}
+        Spectrum of mesh targets (star, mesh), see :data:`TARGET_SOURCES`.
     subdivisions : int
         Icosphere subdivisions of star surfaces.
     """

@@ -20,7 +20,10 @@ from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions, parse_schedule
 from ..inverse.schedule import degree_ramp, numeig_ramp
 from ..targets import TARGET_SOURCES, Target, parse_target
-from ..mesh.model import MeshModel
+from ..mesh.model import REGULARIZER_KINDS, MeshModel
+from ..mesh.io import load_mesh
+from ..mesh.refine import eigenvalue_errors, trusted_numeig
+from ..pipeline.adaptive import AdaptiveOptions, adaptive_fit
 from ..parallel import make_executor
 from ..spectral.topology import check_genus_zero
 from ..sphere.harmonics import as_coefficients
@@ -34,7 +37,8 @@ def _mesh(args, target: Target) -> MeshModel:
     if target.sphere is None:
         raise InvalidArgumentError("--model mesh needs a mesh target (star:... or mesh:...): it fits per-vertex "
                                    "factors on the target's cMCF sphere")
-    return MeshModel(target.sphere, lmax_factor=args.lmax_factor)
+    return MeshModel(target.sphere, lmax_factor=args.lmax_factor, transform="exp" if args.log_factors else "identity",
+                     reg_kind=args.reg_kind)
 
 
 def read_initial(path: Path, model) -> np.ndarray:
@@ -91,8 +95,14 @@ def register(subparsers) -> None:
                    "last column of 'shspec mesh-spectrum' output; .npy; .json)")
     p.add_argument("--lmax", type=int, default=30, help="basis band limit Lb")
     p.add_argument("--lmax-factor", type=int, default=15, help="factor band limit La")
-    p.add_argument("--numeig", type=int, default=256,
-                   help="eigenvalues matched, lambda_0 = 0 included (a spectrum: file's first NUMEIG; all if fewer)")
+    p.add_argument("--numeig", type=_numeig, default=256,
+                   help="eigenvalues matched, lambda_0 = 0 included (a spectrum: file's first NUMEIG; all if fewer); "
+                   "'auto' for mesh targets: those whose estimated discretization error (against one 4-to-1 "
+                   "subdivision of the mesh) is at most --numeig-tol, of at most min(n/4, 300); 'all' for mesh "
+                   "targets: n - 1, every eigenvalue of the n-vertex mesh (on bunny_600, R = 0.05, all 599 gave "
+                   "log-factor correlation 0.997 against 0.48 with 100)")
+    p.add_argument("--numeig-tol", type=float, default=0.01,
+                   help="relative eigenvalue error tolerated by --numeig auto")
     p.add_argument("--schedule", default="auto",
                    help="stages: 'auto' (the model's default: the degree ramp for harmonic fits, which with 4 basin "
                    "hops made 7 of 8 blob starts succeed; the numeig ramp for meshes), 'degree-ramp', 'ramp' "
@@ -101,10 +111,25 @@ def register(subparsers) -> None:
     p.add_argument("--basin-hops", type=int, default=d.basin_hops,
                    help="after the last stage, up to N accepted escape moves (harmonic fits: half-turns and sign "
                    "flips of single degree blocks) to leave local minima; 0 turns them off")
-    p.add_argument("--reg", type=float, default=d.reg, help="bi-Laplacian regularization weight R")
+    p.add_argument("--reg", type=float, default=d.reg,
+                   help="regularization weight R (harmonic: R |Laplacian rho|^2; mesh: see --reg-kind)")
+    p.add_argument("--reg-kind", choices=REGULARIZER_KINDS, default="dirichlet",
+                   help="mesh fits: 'dirichlet', R s'Ls/2 with the cotan L (the study's R, independent of the "
+                   "mesh's scale), or 'bilaplacian', R (Ls)' M^-1 (Ls)")
+    p.add_argument("--log-factors", action=argparse.BooleanOptionalAction, default=True,
+                   help="mesh fits: fit s = log c (positive for free; on bunny_600, R = 0.05, log-factor "
+                   "correlation 0.83 against -0.07 for linear factors) or c itself")
+    p.add_argument("--adaptive", action="store_true",
+                   help="mesh fits: start from a generic icosphere (--adaptive-start subdivisions) instead of the "
+                   "target's cMCF sphere and refine it where the fitted factors are large or vary fast, up to the "
+                   "target mesh's vertex count; stages and sizes go into summary.json")
+    p.add_argument("--adaptive-start", type=int, default=2, help="icosphere subdivisions of the first adaptive stage")
     p.add_argument("--starts", type=int, default=d.starts, help="random starts")
     p.add_argument("--seed", type=int, default=d.seed, help="random seed")
-    p.add_argument("--optimizer", choices=OPTIMIZERS, default=d.optimizer, help="optimizer")
+    p.add_argument("--optimizer", choices=OPTIMIZERS, default=None,
+                   help=f"optimizer (default: {d.optimizer} for harmonic fits; lbfgs for mesh fits, which with every "
+                   "eigenvalue of bunny_600 reached LM's result in 11 s against 16 s, and at 1200 vertices where LM "
+                   "diverged: benchmarks/results/bench_inverse.json mesh_all)")
     p.add_argument("--weights", choices=WEIGHTINGS, default=d.weights, help="eigenvalue weights")
     p.add_argument("--area", choices=AREA_MODES, default=d.area, help="area treatment")
     p.add_argument("--max-iter", type=int, default=d.max_iter, help="iterations per stage")
@@ -112,7 +137,9 @@ def register(subparsers) -> None:
     p.add_argument("--model", choices=tuple(MODELS), default="harmonic",
                    help="fit harmonic coefficients, or per-vertex factors on the target's cMCF sphere (mesh targets)")
     p.add_argument("--source", choices=TARGET_SOURCES, default="pl",
-                   help="spectrum of a mesh target: its cotan spectrum or the harmonic one of its factors")
+                   help="spectrum of a mesh target: its cotan spectrum (pl), the cotan spectrum of its cMCF sphere "
+                   "carrying the cMCF factors (cmcf: exactly representable by --model mesh), or the harmonic one of "
+                   "its factors")
     p.add_argument("--subdivisions", type=int, default=3, help="icosphere subdivisions of star targets")
     p.add_argument("--init", type=Path, default=None, metavar="FILE",
                    help="starting point of the first start: a previous fit's result.h5 or summary.json, a .npy "
@@ -144,16 +171,74 @@ def _schedule(text: str, numeig: int, lmax_factor: int):
     return parse_schedule(text)
 
 
+def _numeig(text: str):
+    if text in ("auto", "all"):
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--numeig is an integer, 'auto' or 'all', got {text!r}") from None
+
+
+def _auto_numeig(args, target: Target) -> tuple[Target, dict]:
+    """The target cut to the eigenvalues its mesh resolves to ``--numeig-tol`` (see ``--numeig``), and a report."""
+    if target.mesh is None:
+        raise InvalidArgumentError("--numeig auto needs a mesh target (star:... or mesh:...)")
+    n = target.mesh.nvertices
+    if target.source == "cmcf":
+        _, err = eigenvalue_errors(target.sphere, target.numeig, factors=target.factors)
+        where = "its cMCF sphere carrying the cMCF factors"
+    else:
+        _, err = eigenvalue_errors(target.mesh, target.numeig)
+        where = "the target mesh"
+    k = trusted_numeig(err, args.numeig_tol)
+    report = {"chosen": k, "of": target.numeig, "tolerance": args.numeig_tol, "estimated_on": where,
+              "estimate": "|lambda_i - lambda_i(4-to-1 subdivision)| / lambda_i",
+              "largest_kept_error": float(err[1:k].max()),
+              "first_dropped_error": float(err[k]) if k < err.size else None}
+    print(f"--numeig auto: {k} of the first {target.numeig} eigenvalues of {where} ({n} vertices) have an estimated "
+          f"discretization error <= {args.numeig_tol:g} (largest kept {report['largest_kept_error']:.2g}"
+          + (f", next {err[k]:.2g})" if k < err.size else ")"), file=sys.stderr)
+    cut = Target(target.name, target.eigenvalues[:k], area=target.area, truth=target.truth, mesh=target.mesh,
+                 sphere=target.sphere, factors=target.factors, source=target.source)
+    return cut, report
+
+
+def _mesh_size(args) -> int:
+    """Vertices of the mesh of a star:/mesh: target."""
+    scheme, _, arg = args.target.partition(":")
+    return load_mesh(arg).nvertices if scheme == "mesh" else 10 * 4 ** args.subdivisions + 2
+
+
+def _auto_cap(args) -> int:
+    """How many eigenvalues --numeig auto considers: min(n/4, 300) for the target mesh's n vertices."""
+    return max(2, min(_mesh_size(args) // 4, 300))
+
+
 def _fit(args) -> int:
     out: Path = args.out
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out} is a file; give a directory")
-    target = parse_target(args.target, lmax=args.lmax, numeig=args.numeig, lmax_factor=args.lmax_factor,
+    auto = args.numeig == "auto"
+    if args.numeig in ("auto", "all") and args.target.partition(":")[0] not in ("star", "mesh"):
+        raise InvalidArgumentError(f"--numeig {args.numeig} needs a mesh target (star:... or mesh:...)")
+    numeig = args.numeig
+    if auto:
+        numeig = _auto_cap(args)
+    elif numeig == "all":
+        numeig = _mesh_size(args) - 1
+    target = parse_target(args.target, lmax=args.lmax, numeig=numeig, lmax_factor=args.lmax_factor,
                           source=args.source, subdivisions=args.subdivisions)
+    extra = {}
+    if auto:
+        target, extra["numeig_auto"] = _auto_numeig(args, target)
     if not args.allow_any_genus and args.target.partition(":")[0] in ("spectrum", "mesh"):
         check_genus_zero(target.eigenvalues, area=target.area)
     model = MODELS[args.model](args, target)
-    options = FitOptions(optimizer=args.optimizer, weights=args.weights, reg=args.reg, area=args.area,
+    if not args.log_factors and args.adaptive:
+        raise InvalidArgumentError("--adaptive fits log factors (refinement follows log c); drop --no-log-factors")
+    optimizer = args.optimizer or ("lbfgs" if args.model == "mesh" else FitOptions().optimizer)
+    options = FitOptions(optimizer=optimizer, weights=args.weights, reg=args.reg, area=args.area,
                          schedule=_schedule(args.schedule, target.numeig, args.lmax_factor), starts=args.starts,
                          seed=args.seed, start_amplitude=args.amplitude, max_iter=args.max_iter,
                          basin_hops=args.basin_hops, checkpoint_every=args.checkpoint_every,
@@ -163,12 +248,23 @@ def _fit(args) -> int:
         print(f"fitting {target.name}: {target.numeig} eigenvalues, {model.describe()}, {options.starts} starts",
               file=sys.stderr)
     init = None if args.init is None else read_initial(args.init, model)
-    if args.workers is None and args.scheduler is None:
+    if args.adaptive:
+        if args.model != "mesh" or init is not None or args.workers or args.scheduler or args.resume:
+            raise InvalidArgumentError("--adaptive is a mesh fit (--model mesh) without --init, --workers, "
+                                       "--scheduler or --resume")
+        adaptive = adaptive_fit(target, AdaptiveOptions(subdivisions=args.adaptive_start, reg_kind=args.reg_kind,
+                                                        fit=options),
+                                log=None if args.quiet else (lambda msg: print(msg, file=sys.stderr)))
+        result, extra["adaptive"] = adaptive.result, adaptive.to_dict()
+    elif args.workers is None and args.scheduler is None:
         result = fit(target, model, options, resume=args.resume, init=init)
     else:
         with make_executor(args.workers, args.scheduler) as executor:
             result = fit(target, model, options, resume=args.resume, init=init, executor=executor)
     result.write(out)
+    if extra:
+        path = out / "summary.json"
+        path.write_text(json.dumps({**json.loads(path.read_text()), **extra}, indent=2) + "\n")
     ident = result.identifiability()
     print(("warning: " if ident.underdetermined else "") + ident.statement(), file=sys.stderr)
     best = result.best

@@ -1,31 +1,38 @@
-"""``pl-bunny``: the regularized PL inverse of the bunny from its own cMCF sphere (Section 3.2.2) and the recursive fit
-(Section 3.2.3).
+"""``pl-bunny``: the regularized PL inverse of the bunny (Section 3.2.2, Figure 1), the same for spot and blub, the
+recursive fit (Section 3.2.3, Figure 2), the exactly representable target and the adaptive fit from an icosphere.
 
-Each run ``"MESH:R"`` loads ``MESH.obj`` from ``mesh_dir``, scales it to area 4π (so that R is a dimensionless
-weight and the mean factor is 1), takes its cotan spectrum (first K eigenvalues) as the target and fits per-vertex
-factors on its cMCF sphere with the bi-Laplacian weight R.  The cMCF factors of coarse bunnies span many decades
-(the ears are squeezed onto tiny parts of the sphere), so the factors are compared through log c: the
-area-weighted RMS of log(c/c*) and the correlation of log c with log c*.
+Each run ``"MESH:R"`` loads ``MESH.obj`` from ``mesh_dir``, scales it to area 4π (the mean factor is then 1), takes
+its cotan spectrum (first K eigenvalues, target (a)) and fits log factors s = log c on its own cMCF sphere with the
+study's Dirichlet penalty R sᵀLs/2 (``MeshModel(transform="exp", reg_kind="dirichlet")``: its R is dimensionless,
+so the study's R = 0.05 means the same here).  The fit and the cMCF factors are compared vertex by vertex through
+log c (RMS of log(c/c*), Pearson correlation over the vertices, unweighted and area weighted) and re-embedded
+(:func:`shspec.embed.embed`) for the Hausdorff distance to the mesh, over its bounding diagonal.
 
-The first run is then re-embedded (:func:`shspec.embed.embed`), and the recursive fit of the study repeats the
-cycle once: cMCF of the re-embedded mesh, a new fit of the same target spectrum on that sphere, a new embedding.
-The embedded meshes are compared with the bunny by their spectra and by Hausdorff/Chamfer distances after rigid
-alignment.
+For the first run also: target (b), the spectrum of the cMCF sphere carrying the cMCF factors (exactly
+representable), fitted along a regularization path down to R = 0, with the RMS log error over the directions the
+eigenvalues determine (:func:`shspec.inverse.identifiability.determined_directions`); the adaptive fit from a
+generic icosphere (:func:`shspec.pipeline.adaptive.adaptive_fit`, aligned to the truth by Möbius + O(3)); and the
+recursive fit (:func:`shspec.pipeline.recursive.recursive_fit` with ``warm_start="init"``: fit, embed, cMCF of the
+embedding, fit again from the transferred factors, embed again) at the recursive R.
 """
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
 
 from ..embed import EmbedOptions, embed, render_mesh, surface_distance
 from ..errors import InvalidArgumentError
-from ..inverse import FitOptions, Target, fit, mesh_target
-from ..mesh import MeshModel, cmcf, load_mesh, mesh_spectrum, plot_hammer
+from ..inverse import FitOptions, fit, mesh_target
+from ..inverse.identifiability import determined_directions
+from ..mesh import MeshModel, load_mesh, plot_hammer
+from ..pipeline.adaptive import AdaptiveOptions, adaptive_fit
+from ..pipeline.recursive import RecursiveOptions, recursive_fit
 from .base import Experiment, Finding, register
 from .common import save_figure
-from .fitting import Progress, single_threaded, spectral_residuals, vertex_factor_errors, write_h5
+from .fitting import Progress, single_threaded, vertex_factor_errors, write_h5
 
 
 def _parse_run(text: str) -> tuple[str, float]:
@@ -41,85 +48,98 @@ def _load(mesh_dir: str, name: str):
     return mesh.with_vertices(mesh.vertices * np.sqrt(4 * np.pi / mesh.area()))
 
 
+def _options(cfg, reg, optimizer=None, max_iter=None):
+    return FitOptions(schedule=(), starts=1, basin_hops=0, start_amplitude=1e-3, reg=reg,
+                      optimizer=optimizer or cfg["optimizer"], max_iter=max_iter or cfg["max_iter"], seed=cfg["seed"])
+
+
+def _errors(model, c, truth) -> dict:
+    """Vertex-by-vertex errors of fitted factors c against the truth on the model's own mesh (as in summary.json)."""
+    w = vertex_factor_errors(model.vertex_areas, c, truth)
+    return {"log_rms": w["log_rms"], "log_correlation": float(np.corrcoef(np.log(c), np.log(truth))[0, 1]),
+            "log_correlation_area_weighted": w["log_correlation"], "fitted_min": float(np.min(c)),
+            "fitted_max": float(np.max(c)), "cmcf_min": float(np.min(truth)), "cmcf_max": float(np.max(truth))}
+
+
 def run(cfg: dict, out, progress: bool) -> Finding:
     k = cfg["numeig"]
     runs = [_parse_run(r) for r in cfg["runs"]]
-    bar = Progress(progress, len(runs) + (3 if cfg["recursive"] else 1), "pl-bunny")
+    bar = Progress(progress, 2 * len(runs) + 3, "pl-bunny")
     eopt = EmbedOptions(final_iterations=cfg["embed_iterations"], check_intersections=False)
-    rows, h5 = [], {}
+    rows, h5, panels = [], {}, []
+
+    def hausdorff(sphere, c, mesh):
+        e = embed(sphere, c, eopt)
+        return e.mesh, surface_distance(e.mesh, mesh, samples=cfg["distance_samples"]).hausdorff_relative
+
     with single_threaded():
         for i, (name, reg) in enumerate(runs):
             mesh = _load(cfg["mesh_dir"], name)
             target = mesh_target(mesh, 12, k, 6, name=name)
-            model = MeshModel(target.sphere)
-            result = fit(target, model, FitOptions(schedule=(), starts=1, max_iter=cfg["max_iter"], reg=reg, seed=cfg["seed"]))
+            model = MeshModel(target.sphere, transform="exp", reg_kind="dirichlet")
+            t0 = time.process_time()
+            result = fit(target, model, _options(cfg, reg))
+            cpu = time.process_time() - t0
             best = result.best
-            err = vertex_factor_errors(model.vertex_areas, best.params, target.factors)
-            cm = spectral_residuals(model.spectrum(target.factors, k).eigenvalues, target.eigenvalues)
-            rows.append({"run": f"{name} R={reg:g}", "stage": "fit", "vertices": mesh.nvertices,
-                         "fit_residual_max": best.relative_residual,
-                         "fit_residual_mean": spectral_residuals(best.eigenvalues, target.eigenvalues)[1],
-                         "cmcf_residual_mean": cm[1], "log_rms_error": err["log_rms"],
-                         "log_correlation": err["log_correlation"], "fitted_min": float(best.params.min()),
-                         "fitted_max": float(best.params.max()), "cmcf_min": float(target.factors.min()),
-                         "cmcf_max": float(target.factors.max()), "iterations": best.iterations,
-                         "status": best.status, "seconds": result.seconds, "embedded_hausdorff": float("nan"),
-                         "embedded_chamfer": float("nan"), "embedded_spectrum_residual_mean": float("nan")})
+            row = {"run": f"{name} R={reg:g}", "case": "(a) own cMCF sphere", "vertices": mesh.nvertices,
+                   "relative_residual": best.relative_residual, **_errors(model, best.params, target.factors),
+                   "iterations": best.iterations, "status": best.status, "cpu_s": cpu}
+            bar.step(f"{name} R = {reg:g}: residual {best.relative_residual:.2e}, log correlation "
+                     f"{row['log_correlation']:.2f}")
+            emb_fit, row["embedded_hausdorff"] = hausdorff(target.sphere, best.params, mesh)
+            emb_true, row["cmcf_embedded_hausdorff"] = hausdorff(target.sphere, target.factors, mesh)
+            bar.step(f"{name}: embedded fit at Hausdorff {row['embedded_hausdorff']:.3f}, cMCF factors "
+                     f"{row['cmcf_embedded_hausdorff']:.3f}")
+            rows.append(row)
+            panels.append((name, reg, target.sphere, target.factors, best.params, mesh, emb_true, emb_fit))
             h5[f"{name} R={reg:g}"] = {"sphere_vertices": target.sphere.vertices, "faces": mesh.faces,
-                                       "surface_vertices": mesh.vertices, "cmcf_factors": target.factors,
-                                       "fitted_factors": best.params, "target_eigenvalues": target.eigenvalues}
-            bar.step(f"{name} R = {reg:g}: residual {best.relative_residual:.2e}, log error {err['log_rms']:.2f}")
+                                       "cmcf_factors": target.factors, "fitted_factors": best.params,
+                                       "target_eigenvalues": target.eigenvalues}
             if i == 0:
-                first = (name, reg, mesh, target, best.params)
+                first = (name, reg, mesh, target)
 
-        name, reg, mesh, target, c1 = first
-        spectra = {"target": target.eigenvalues,
-                   "cMCF factors on sphere": MeshModel(target.sphere).spectrum(target.factors, k).eigenvalues,
-                   "fit": MeshModel(target.sphere).spectrum(c1, k).eigenvalues}
-        meshes = {"bunny (target)": mesh}
-
-        def embedded(label, sphere, factors):
-            e = embed(sphere, factors, eopt)
-            d = surface_distance(e.mesh, mesh, samples=cfg["distance_samples"])
-            lam = mesh_spectrum(e.mesh, k, whole_multiplets=False).eigenvalues[:k]
-            lam[0] = 0.0
-            spectra[f"embedded {label}"] = lam
-            meshes[f"embedded {label}"] = e.mesh
-            return e, d, spectral_residuals(lam, target.eigenvalues)[1]
-
-        if cfg["embed_truth"]:
-            _, d0, s0 = embedded("cMCF factors", target.sphere, target.factors)
-            rows.append({**{key: float("nan") for key in rows[0]}, "run": f"{name} (cMCF factors)",
-                         "stage": "embed truth", "vertices": mesh.nvertices, "status": "", "iterations": 0,
-                         "embedded_hausdorff": d0.hausdorff_relative, "embedded_chamfer": d0.chamfer_relative,
-                         "embedded_spectrum_residual_mean": s0})
-        e1, d1, s1 = embedded("fit", target.sphere, c1)
-        rows[0].update(embedded_hausdorff=d1.hausdorff_relative, embedded_chamfer=d1.chamfer_relative,
-                       embedded_spectrum_residual_mean=s1)
-        bar.step(f"embedded the fit: Hausdorff {d1.hausdorff_relative:.3f} of the diagonal")
-        hammer = [("cMCF factors (target)", target.sphere, target.factors), ("fit", target.sphere, c1)]
-        if cfg["recursive"]:
-            flow = cmcf(e1.mesh)
-            target2 = Target(f"{name} (recursive)", target.eigenvalues, area=target.area, source="pl")
-            model2 = MeshModel(flow.sphere)
-            result2 = fit(target2, model2, FitOptions(schedule=(), starts=1, max_iter=cfg["max_iter"], reg=reg, seed=cfg["seed"]))
-            c2 = result2.best.params
-            spectra["recursive fit"] = result2.best.eigenvalues
-            bar.step(f"recursive fit: residual {result2.best.relative_residual:.2e}")
-            _, d2, s2 = embedded("recursive fit", flow.sphere, c2)
-            rows.append({**{key: float("nan") for key in rows[0]}, "run": f"{name} R={reg:g}",
-                         "stage": "recursive fit", "vertices": mesh.nvertices,
-                         "fit_residual_max": result2.best.relative_residual,
-                         "fit_residual_mean": spectral_residuals(result2.best.eigenvalues, target.eigenvalues)[1],
-                         "fitted_min": float(c2.min()), "fitted_max": float(c2.max()),
-                         "cmcf_min": float(flow.factors.min()), "cmcf_max": float(flow.factors.max()),
-                         "iterations": result2.best.iterations, "status": result2.best.status,
-                         "seconds": result2.seconds, "embedded_hausdorff": d2.hausdorff_relative,
-                         "embedded_chamfer": d2.chamfer_relative, "embedded_spectrum_residual_mean": s2})
-            h5["recursive"] = {"sphere_vertices": flow.sphere.vertices, "first_embedding": e1.mesh.vertices,
-                               "fitted_factors": c2, "embedding": meshes["embedded recursive fit"].vertices}
-            hammer.append(("recursive fit (its own sphere)", flow.sphere, c2))
-            bar.step(f"embedded the recursive fit: Hausdorff {d2.hausdorff_relative:.3f} of the diagonal")
+        name, reg, mesh, first_target = first
+        # (b) the exactly representable target, along a regularization path ending at R = 0
+        tb = mesh_target(mesh, 12, k, 6, name=name, source="cmcf")
+        model = MeshModel(tb.sphere, transform="exp", reg_kind="dirichlet")
+        c, t0 = None, time.process_time()
+        for r in cfg["path"]:
+            c = fit(tb, model, _options(cfg, r), init=c).best.params
+        res = fit(tb, model, _options(cfg, 0.0), init=c).best
+        B = determined_directions(model, tb.factors, k)
+        d = np.log(res.params) - np.log(tb.factors)
+        rows.append({"run": f"{name} path {cfg['path']} -> 0", "case": "(b) cMCF sphere + factors",
+                     "vertices": mesh.nvertices, "relative_residual": res.relative_residual,
+                     **_errors(model, res.params, tb.factors), "iterations": res.iterations, "status": res.status,
+                     "cpu_s": time.process_time() - t0, "determined_directions": int(B.shape[1]),
+                     "log_rms_determined": float(np.linalg.norm(B.T @ d) / np.sqrt(d.size))})
+        bar.step(f"(b): residual {res.relative_residual:.2e}, RMS log error over {B.shape[1]} determined "
+                 f"directions {rows[-1]['log_rms_determined']:.3g}")
+        # adaptive from an icosphere
+        t0 = time.process_time()
+        ad = adaptive_fit(first_target, AdaptiveOptions(subdivisions=cfg["adaptive_subdivisions"], reg_kind="dirichlet",
+                                                        fit=_options(cfg, reg)))
+        cmp = ad.result.model.compare(ad.result.best.params, first_target)
+        rows.append({"run": f"{name} R={reg:g} sizes {[st.nvertices for st in ad.stages]}",
+                     "case": "(a) adaptive from an icosphere", "vertices": ad.stages[-1].nvertices,
+                     "relative_residual": ad.result.best.relative_residual, "log_rms": cmp["log_rms"],
+                     "log_correlation": cmp["log_correlation"], "fitted_min": cmp["fitted_range"][0],
+                     "fitted_max": cmp["fitted_range"][1], "iterations": ad.result.best.iterations,
+                     "status": ad.result.best.status, "cpu_s": time.process_time() - t0,
+                     "log_rms_ratio_to_own_sphere": cmp["log_rms"] / rows[0]["log_rms"]})
+        bar.step(f"adaptive: log RMS {cmp['log_rms']:.3f} ({rows[-1]['log_rms_ratio_to_own_sphere']:.2f}x own sphere)")
+        # recursive fit (Figure 2)
+        t0 = time.process_time()
+        rec = recursive_fit(first_target, options=RecursiveOptions(
+            passes=2, fit=_options(cfg, cfg["recursive_reg"]), embed=eopt, warm_start="init", log_factors=True,
+            reg_kind="dirichlet"))
+        for j, ps in enumerate(rec.passes):
+            rows.append({"run": f"{name} R={cfg['recursive_reg']:g} pass {j + 1}", "case": "recursive",
+                         "vertices": mesh.nvertices, "relative_residual": ps.fit_residual,
+                         "fitted_min": float(ps.factors.min()), "fitted_max": float(ps.factors.max()),
+                         "status": ps.fit_status, "cpu_s": ps.cpu_seconds,
+                         "embedded_hausdorff": ps.hausdorff_relative})
+        bar.step(f"recursive: Hausdorff {rec.passes[0].hausdorff_relative:.3f} -> {rec.final.hausdorff_relative:.3f}")
     write_h5(out / "results.h5", h5)
 
     import matplotlib
@@ -127,72 +147,62 @@ def run(cfg: dict, out, progress: bool) -> Finding:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig = plt.figure(figsize=(5.2 * len(hammer), 3.6))
-    for j, (title, sphere, c) in enumerate(hammer):
-        plot_hammer(sphere, 1.0 / c, ax=fig.add_subplot(1, len(hammer), j + 1, projection="hammer"), log=True,
-                    title=f"1/c: {title}")
-    save_figure(fig, out / "inverse_factors.png")
-    fig, ax = plt.subplots(figsize=(9, 4.5))
-    idx = np.arange(1, k)
-    for label, lam in spectra.items():
-        if label != "target":
-            ax.semilogy(idx, np.maximum(np.abs(lam[1:] / target.eigenvalues[1:] - 1), 1e-16), ".-", ms=3, lw=0.6,
-                        label=label)
-    ax.set_xlabel("eigenvalue index i")
-    ax.set_ylabel("|lambda_i / lambda_i(bunny) - 1|")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    save_figure(fig, out / "spectra.png")
-    fig = plt.figure(figsize=(3.6 * len(meshes), 3.8))
-    for j, (label, m) in enumerate(meshes.items()):
-        render_mesh(m, ax=fig.add_subplot(1, len(meshes), j + 1, projection="3d"), up="y", view=(15.0, 30.0),
-                    title=label)
-    save_figure(fig, out / "meshes.png")
+    files = []
+    for (name, reg, sphere, truth, c, mesh, emb_true, emb_fit) in panels:
+        fig = plt.figure(figsize=(22, 4.2))
+        lo, hi = np.log10(truth).min(), np.log10(truth).max()
+        for j, (title, v) in enumerate((("log10 c: cMCF factors", truth), ("log10 c: fit", c))):
+            ax = fig.add_subplot(1, 5, j + 1, projection="hammer")
+            plot_hammer(sphere, np.clip(np.log10(v), lo, hi), ax=ax, title=title, percentiles=(0.0, 100.0))
+        for j, (title, m) in enumerate(((f"{name} (target)", mesh), ("embedded cMCF factors", emb_true),
+                                        (f"embedded fit, R = {reg:g}", emb_fit))):
+            render_mesh(m, ax=fig.add_subplot(1, 5, j + 3, projection="3d"), up="y", view=(15.0, 30.0), title=title)
+        files.append(f"figure1_{name}.png")
+        save_figure(fig, out / files[-1])
+    fig = plt.figure(figsize=(22, 4.2))
+    p1, p2 = rec.passes
+    for j, (title, sphere, c) in enumerate((("log10 c: pass 1 (cMCF sphere)", p1.sphere, p1.factors),
+                                            ("log10 c: pass 2 (its own sphere)", p2.sphere, p2.factors))):
+        plot_hammer(sphere, np.log10(c), ax=fig.add_subplot(1, 5, j + 1, projection="hammer"), title=title)
+    for j, (title, m) in enumerate(((f"{name} (target)", mesh), ("embedded pass 1", p1.embedding.mesh),
+                                    ("embedded pass 2 (recursive)", p2.embedding.mesh))):
+        render_mesh(m, ax=fig.add_subplot(1, 5, j + 3, projection="3d"), up="y", view=(15.0, 30.0), title=title)
+    files.append("figure2_recursive.png")
+    save_figure(fig, out / files[-1])
 
-    r0 = rows[0]
-    rec = next((r for r in rows if r["stage"] == "recursive fit"), None)
-    tru = next((r for r in rows if r["stage"] == "embed truth"), None)
-    numbers = {"runs": [{key: r[key] for key in ("run", "stage", "fit_residual_max", "log_rms_error",
-                                                 "log_correlation", "embedded_hausdorff")} for r in rows]}
-    fits = [r for r in rows if r["stage"] == "fit"]
+    fits = [r for r in rows if r["case"] == "(a) own cMCF sphere"]
+    b = next(r for r in rows if r["case"].startswith("(b)"))
+    a = next(r for r in rows if r["case"].startswith("(a) adaptive"))
+    recs = [r for r in rows if r["case"] == "recursive"]
     summary = (
-        f"Regularized PL fits of the bunny (area scaled to 4π, first {k} cotan eigenvalues, started near the "
-        f"constant factor on the bunny's own cMCF sphere, at most {cfg['max_iter']} iterations): "
-        + "; ".join(f"{r['run']} ({r['vertices']} vertices): largest/mean relative residual "
-                    f"{r['fit_residual_max']:.2e}/{r['fit_residual_mean']:.2e}, fitted factors "
-                    f"{r['fitted_min']:.2g}..{r['fitted_max']:.2g} against cMCF {r['cmcf_min']:.2g}..{r['cmcf_max']:.2g}, "
-                    f"RMS log error {r['log_rms_error']:.2f}, correlation of log factors {r['log_correlation']:.2f}"
-                    for r in fits)
-        + f". The cMCF factors themselves, on the sphere, miss the bunny's spectrum by {r0['cmcf_residual_mean']:.1e} "
-        f"on average. Re-embedding the first fit gives a surface at Hausdorff distance {r0['embedded_hausdorff']:.3f} "
-        f"(Chamfer {r0['embedded_chamfer']:.3f}) of the bounding diagonal from the bunny"
-        + (f", against {tru['embedded_hausdorff']:.3f} ({tru['embedded_chamfer']:.3f}) for the embedding of the cMCF "
-           f"factors themselves" if tru else "")
-        + (f". The recursive fit (cMCF of that surface, fit again, embed again) reaches residual "
-           f"{rec['fit_residual_max']:.2e} (mean {rec['fit_residual_mean']:.2e}) and a surface at Hausdorff "
-           f"{rec['embedded_hausdorff']:.3f} (Chamfer {rec['embedded_chamfer']:.3f})" if rec else "")
-        + ". The largest fitted factors are "
-        + ", ".join(f"{r['fitted_max']:.3g} ({r['run']})" for r in fits)
-        + f" against {r0['cmcf_max']:.3g} for the cMCF factors at the ear tips: the ears' huge factors are "
-        + ("not reached by any fit" if all(r["fitted_max"] < 0.01 * r["cmcf_max"] for r in fits)
-           else "approached by some fit")
-        + ", so the re-embedded surfaces stay blob-like rather than growing the study's (curled) ears. The fits stop "
-        "(" + ", ".join(f"{r['run']} {r['stage']}: {r['status']} after {r['iterations']} iterations"
-                              for r in rows if r["stage"] != "embed truth")
-        + (f"); the smallest fitted factor ({min(r['fitted_min'] for r in fits):.1e}) shows that a fit ran into the "
-           "positivity safeguard: the factors are fitted linearly, and growing factors towards 1e6 times the mean "
-           "from a constant start drives other vertices to 0 first." if min(r["fitted_min"] for r in fits) < 1e-4
-           else "); no fit reaches the positivity bound (smallest fitted factor "
-           f"{min(r['fitted_min'] for r in fits):.2g})."))
-    return Finding(summary, {"pl_bunny": rows}, ["inverse_factors.png", "spectra.png", "meshes.png"], numbers)
+        f"Log-factor PL fits with the study's Dirichlet penalty R sᵀLs/2 (area 4π, first {k} cotan eigenvalues, "
+        f"one start from the constant factors on the mesh's own cMCF sphere, {cfg['optimizer']}, at most "
+        f"{cfg['max_iter']} iterations): "
+        + "; ".join(f"{r['run']}: residual {r['relative_residual']:.2e}, fitted {r['fitted_min']:.2g}..{r['fitted_max']:.2g}"
+                    f" against cMCF {r['cmcf_min']:.2g}..{r['cmcf_max']:.2g}, log RMS {r['log_rms']:.2f}, log "
+                    f"correlation {r['log_correlation']:.2f} (area weighted {r['log_correlation_area_weighted']:.2f}), "
+                    f"re-embedded at Hausdorff {r['embedded_hausdorff']:.3f} of the diagonal (cMCF factors "
+                    f"{r['cmcf_embedded_hausdorff']:.3f}), {r['cpu_s']:.0f} s CPU" for r in fits)
+        + f". Target (b) (the cMCF sphere carrying the cMCF factors, exactly representable), R path {cfg['path']} "
+        f"then 0: residual {b['relative_residual']:.2e}, RMS log error {b['log_rms']:.3g} over all vertices and "
+        f"{b['log_rms_determined']:.3g} over the {b['determined_directions']} directions the eigenvalues determine. "
+        f"Adaptive from an icosphere ({a['run']}): log RMS {a['log_rms']:.3f}, "
+        f"{a['log_rms_ratio_to_own_sphere']:.2f}x the own-sphere fit, correlation {a['log_correlation']:.2f}. "
+        f"Recursive fit (R = {cfg['recursive_reg']:g}): Hausdorff "
+        + " -> ".join(f"{r['embedded_hausdorff']:.3f}" for r in recs) + ".")
+    keys = list(dict.fromkeys(key for r in rows for key in r))
+    rows = [{key: r.get(key, float("nan")) for key in keys} for r in rows]  # one table: equal keys
+    return Finding(summary, {"pl_bunny": rows}, files, {"runs": rows})
 
 
 register(Experiment(
-    name="pl-bunny", title="Regularized and recursive PL fits of the bunny",
-    reproduces="the study's Sections 3.2.2 (regularized fit, bunny, R = 0.05 / 0.1) and 3.2.3 (recursive fit)",
-    defaults={"runs": ["bunny_600:0.05", "bunny_1200:0.1", "bunny_600:0"], "mesh_dir": "/work/shared/data/meshes",
-              "numeig": 40, "max_iter": 40, "seed": 0, "recursive": True, "embed_truth": True,
-              "embed_iterations": 100, "distance_samples": 5000},
+    name="pl-bunny", title="Regularized, recursive and adaptive PL fits of the bunny, spot and blub in log factors",
+    reproduces="the study's Sections 3.2.2 (regularized fit, Figure 1, R = 0.05) and 3.2.3 (recursive fit, Figure "
+               "2, R = 0.1), and its open problem A.5 (adaptive refinement)",
+    defaults={"runs": ["bunny_600:0.05", "spot_600:0.05", "blub_600:0.05"], "mesh_dir": "/work/shared/data/meshes",
+              "numeig": 599, "max_iter": 300, "optimizer": "lbfgs", "seed": 0, "path": [1.0, 0.1, 0.01, 0.001, 0.0001],
+              "recursive_reg": 0.1, "adaptive_subdivisions": 2, "embed_iterations": 100, "distance_samples": 5000},
     quick={"runs": ["bunny_600:0.05"], "mesh_dir": "/work/shared/data/meshes", "numeig": 12, "max_iter": 5,
-           "seed": 0, "recursive": True, "embed_truth": False, "embed_iterations": 10, "distance_samples": 500},
-    expected_minutes=1.5, run=run))
+           "optimizer": "lbfgs", "seed": 0, "path": [0.05], "recursive_reg": 0.1, "adaptive_subdivisions": 2,
+           "embed_iterations": 10, "distance_samples": 500},
+    expected_minutes=8.0, run=run))

@@ -28,7 +28,7 @@ from ..checks import check_float, check_int
 from ..errors import InvalidArgumentError
 from ..model import SpectralModel
 
-__all__ = ["Identifiability", "identifiability"]
+__all__ = ["Identifiability", "identifiability", "determined_directions"]
 
 
 @dataclass(frozen=True)
@@ -145,3 +145,32 @@ def identifiability(model: SpectralModel, params, numeig: int, *, fit_area: bool
                            condition=condition, estimated_error=estimated,
                            noise_gain=float(np.linalg.norm(pinv) / norm), singular_values=s,
                            underdetermined=under)
+
+
+def determined_directions(model: SpectralModel, params, numeig: int, *, rank_tol: float = 1e-6) -> np.ndarray:
+    """An orthonormal basis (nparams, r) of the directions of the model's *variables* u (p = u, or s = log p for
+    ``transform="exp"``) that the first ``numeig`` eigenvalues determine at ``params``: the right singular vectors
+    of the relative Jacobian (∂λ_i/∂u_j)/λ_i (i ≥ 1) whose singular values exceed ``rank_tol``·s₁.
+
+    An error e of the variables is then measured where the spectrum sees it by ‖Bᵀe‖ (the rest of e, in the null
+    space, no spectrum of K eigenvalues can correct; e.g. K − 1 < n eigenvalues for n per-vertex factors).
+
+    Raises
+    ------
+    InvalidArgumentError
+        For a model that is not a SpectralModel, parameters of the wrong shape, or bad K or tolerance.
+    """
+    if not isinstance(model, SpectralModel):
+        raise InvalidArgumentError(f"model must be a SpectralModel, got {type(model).__name__}")
+    p = np.asarray(params, dtype=float)
+    if p.shape != (model.nparams,):
+        raise InvalidArgumentError(f"params must have shape ({model.nparams},), got {p.shape}")
+    numeig = check_int(numeig, "numeig", minimum=2)
+    rank_tol = check_float(rank_tol, "rank_tol", positive=True)
+    spec = model.spectrum(p, numeig)
+    jac = model.jacobian(spec)[1:] / spec.eigenvalues[1:, None]
+    if model.transform == "exp":
+        jac = jac * p[None, :]  # ∂/∂s = p ∂/∂p
+    _, s, vt = np.linalg.svd(jac, full_matrices=False)
+    rank = int(np.sum(s > rank_tol * s[0])) if s.size and s[0] > 0 else 0
+    return vt[:rank].T

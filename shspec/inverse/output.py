@@ -68,7 +68,8 @@ def summary(result: FitResult) -> dict:
 
 
 def write_result(result: FitResult, directory, *, figures: bool = True) -> Path:
-    """Write ``result.h5`` (:func:`~shspec.inverse.checkpoint.save_result`), ``summary.json`` and, if ``figures``,
+    """Write ``result.h5`` (:func:`~shspec.inverse.checkpoint.save_result`), ``summary.json``, the model's own files
+    (:meth:`~shspec.model.SpectralModel.write_files`: factors.txt and sphere.obj of a mesh fit) and, if ``figures``,
     history.png, residuals.png, factors.png and the model's own figures into ``directory`` (created).
 
     Returns
@@ -79,6 +80,7 @@ def write_result(result: FitResult, directory, *, figures: bool = True) -> Path:
     out = ensure_directory(directory)
     save_result(out / "result.h5", result)
     (out / "summary.json").write_text(json.dumps(summary(result), indent=2) + "\n")
+    result.model.write_files(result.best.params, out)
     if figures:
         import matplotlib.pyplot as plt
 

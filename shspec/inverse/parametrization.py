@@ -84,7 +84,15 @@ class Parametrization:
     def params(self, x) -> np.ndarray:
         """p (n,) for free values x (nfree,)."""
         u = self.variables(x)
-        return np.exp(u) if self.transform == "exp" else u
+        if self.transform != "exp":
+            return u
+        with np.errstate(over="ignore", under="ignore"):
+            p = np.exp(u)
+        if not np.all(np.isfinite(p) & (p > 0)):
+            # a trial step of the optimizer beyond what double precision can hold: not a usable point
+            bad = int(np.flatnonzero(~(np.isfinite(p) & (p > 0)))[0])
+            raise NotPositiveError(f"log variable {bad} = {u[bad]:.3g} overflows or underflows exp")
+        return p
 
     def pullback(self, x, derivative) -> np.ndarray:
         """∂/∂x from ∂/∂p: ``derivative`` of shape (..., n) (a gradient or a Jacobian's rows) → (..., nfree)."""

@@ -11,10 +11,12 @@ regularizer then smooths s.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import InvalidArgumentError, NotPositiveError
+from ..errors import InvalidArgumentError, MeshError, NotPositiveError
 from ..model import TRANSFORMS, SpectralModel, Spectrum, regularization_weight
 from ..sphere.evaluate import sample_harmonic
 from ..sphere.factor import ConformalFactor
@@ -22,10 +24,54 @@ from ..sphere.random import random_coefficients
 from .bridge import fit_harmonic, mesh_band_limit
 from .cotan import cotan_stiffness, vertex_areas
 from .eigen import EigenOptions, eigenpairs
+from .io import save_mesh
+from .refine import align_vertex_field
 from .figures import plot_spectra_validation, plot_vertex_factors
 from .triangle_mesh import TriangleMesh
 
-__all__ = ["MeshModel"]
+__all__ = ["MeshModel", "REGULARIZER_KINDS", "dirichlet_root"]
+
+#: Smoothness penalties of a mesh fit on its variables u (c, or s = log c): "bilaplacian", R (Lu)ᵀ M₀⁻¹ (Lu) (the
+#: continuum R ∫ (Δu)² dA), or "dirichlet", R uᵀ L u / 2 = (R/2) ∫ |∇u|² dA, the study's reg·sᵀ(−L)s/2 with its
+#: negative semi-definite cotan L (``eigencost.m`` of levincoolxyz/invspec).  The Dirichlet form is dimensionless
+#: (the cotan weights and s are), so its R does not depend on the mesh's scale; the bi-Laplacian's scales as 1/area.
+REGULARIZER_KINDS = ("bilaplacian", "dirichlet")
+
+#: Largest ratio of two vertex masses c_j m_j for which the pencil L v = λ diag(c m) v is solved at all: at
+#: 1/ε ≈ 4.5e15 no accuracy is left.  Legitimate metrics come close: the constant start on blub_600's cMCF sphere has
+#: masses spanning 1.3e10 (its sphere's vertex areas).
+_MAX_MASS_SPREAD = 1e14
+#: Above this spread a pencil the solver finds broken (a negative eigenvalue, e.g. λ₀ ≈ −1e-8·λ_max on a 42-vertex
+#: sphere at a log-factor trial step) is blamed on the masses: a rejected point, not an error of the mesh.
+_SUSPECT_MASS_SPREAD = 1e8
+
+
+def dirichlet_root(mesh: TriangleMesh) -> sp.csr_matrix:
+    """G (2m, n) with ‖G u‖² = uᵀ L u = ∫ |∇u|² dA for the piecewise-linear interpolant u of vertex values.
+
+    Rows 2f and 2f + 1 are √A_f times the two components of the (constant) gradient on face f in an orthonormal
+    frame of its plane: ∇φ_k = n̂ × e_k / (2A_f), e_k the edge opposite corner k.  Unlike the edge form
+    Σ w_ij (u_i − u_j)², this is a real square root on every mesh, obtuse angles (negative cotan weights) included.
+    """
+    if not isinstance(mesh, TriangleMesh):
+        raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
+    p = mesh.vertices[mesh.faces]
+    e = np.stack([p[:, 2] - p[:, 1], p[:, 0] - p[:, 2], p[:, 1] - p[:, 0]], axis=1)  # (m, 3 corners, 3)
+    cross = np.cross(e[:, 0], e[:, 1])
+    dbl = np.linalg.norm(cross, axis=1)
+    if np.any(dbl <= 0):
+        raise MeshError(f"face {int(np.flatnonzero(dbl <= 0)[0])} has zero area: its gradient is undefined")
+    nrm = cross / dbl[:, None]
+    t1 = e[:, 2] / np.linalg.norm(e[:, 2], axis=1)[:, None]
+    t2 = np.cross(nrm, t1)
+    grad = np.cross(nrm[:, None, :], e) / dbl[:, None, None]  # (m, 3, 3): ∇φ_k = n̂ × e_k / (2A)
+    scale = np.sqrt(0.5 * dbl)[:, None]
+    comp = [scale * np.einsum("fkd,fd->fk", grad, t) for t in (t1, t2)]  # (m, 3) each
+    m = mesh.nfaces
+    rows = np.concatenate([np.repeat(2 * np.arange(m) + j, 3) for j in range(2)])
+    cols = np.concatenate([mesh.faces.ravel()] * 2)
+    vals = np.concatenate([c.ravel() for c in comp])
+    return sp.csr_matrix((vals, (rows, cols)), shape=(2 * m, mesh.nvertices))
 
 
 class MeshModel(SpectralModel):
@@ -42,6 +88,8 @@ class MeshModel(SpectralModel):
     lmax_factor : int, optional
         Degree of the harmonic expansion of fitted factors (:meth:`to_factor`); default and cap: the largest the
         mesh determines (:func:`~shspec.mesh.bridge.mesh_band_limit`).
+    reg_kind : {"bilaplacian", "dirichlet"}
+        The smoothness penalty :meth:`regularizer` puts on the variables, see :data:`REGULARIZER_KINDS`.
 
     Attributes
     ----------
@@ -54,14 +102,17 @@ class MeshModel(SpectralModel):
     """
 
     def __init__(self, mesh: TriangleMesh, options: EigenOptions | None = None, *, transform: str = "identity",
-                 lmax_factor: int | None = None):
+                 lmax_factor: int | None = None, reg_kind: str = "bilaplacian"):
         if not isinstance(mesh, TriangleMesh):
             raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
         if options is not None and not isinstance(options, EigenOptions):
             raise InvalidArgumentError(f"options must be EigenOptions, got {type(options).__name__}")
         if transform not in TRANSFORMS:
             raise InvalidArgumentError(f"transform must be one of {TRANSFORMS}, got {transform!r}")
+        if reg_kind not in REGULARIZER_KINDS:
+            raise InvalidArgumentError(f"reg_kind must be one of {REGULARIZER_KINDS}, got {reg_kind!r}")
         self.transform = transform
+        self.reg_kind = reg_kind
         self.lmax_factor = mesh_band_limit(mesh.nvertices, lmax_factor)
         self.mesh = mesh
         self.options = options
@@ -84,6 +135,12 @@ class MeshModel(SpectralModel):
             bad = np.flatnonzero(c <= 0)
             raise NotPositiveError(f"{bad.size} conformal factors are <= 0 (first: vertex {bad[0]}, "
                                    f"c = {c[bad[0]]:.3g}); a metric needs c > 0")
+        mass = c * self.vertex_areas
+        if mass.max() > _MAX_MASS_SPREAD * mass.min():
+            # A log-factor step can reach factors whose masses differ by more than the precision can carry: the
+            # pencil's eigenvalues are then rounding noise (even negative).  Not a usable metric: a rejected trial.
+            raise NotPositiveError(f"the vertex masses c_j m_j span {mass.max() / mass.min():.3g} > "
+                                   f"{_MAX_MASS_SPREAD:g}: the eigenproblem cannot be solved in double precision")
         return c
 
     def mass(self, c) -> sp.csr_matrix:
@@ -112,7 +169,15 @@ class MeshModel(SpectralModel):
         NotPositiveError
             If some c_j ≤ 0.
         """
-        return eigenpairs(self.stiffness, self.mass(params), k, self.options)
+        mass = self.mass(params)
+        try:
+            return eigenpairs(self.stiffness, mass, k, self.options)
+        except InvalidArgumentError as exc:
+            m = mass.diagonal()
+            if m.max() > _SUSPECT_MASS_SPREAD * m.min():
+                raise NotPositiveError(f"the vertex masses span {m.max() / m.min():.3g}, and the eigenproblem "
+                                       f"failed there: {exc}") from None
+            raise
 
     def _check_spec(self, spec: Spectrum) -> None:
         if not isinstance(spec, Spectrum):
@@ -174,7 +239,8 @@ class MeshModel(SpectralModel):
 
     def describe(self) -> str:
         return (f"mesh n={self.nparams} area={np.round(self.vertex_areas.sum(), 12)}"
-                + ("" if self.transform == "identity" else f" {self.transform}"))
+                + ("" if self.transform == "identity" else f" {self.transform}")
+                + ("" if self.reg_kind == "bilaplacian" else f" reg={self.reg_kind}"))
 
     def free_parameters(self, fit_area: bool) -> np.ndarray:
         """Every vertex factor (their sum sets the area, so ``fit_area`` has no separate parameter)."""
@@ -192,11 +258,17 @@ class MeshModel(SpectralModel):
         return c0 * (1.0 + field)
 
     def regularizer(self, reg: float):
-        """D = √(2R) M₀^{-1/2} L on the variables u (c or s): ½‖Du‖² = R (Lu)ᵀ M₀⁻¹ (Lu), the bi-Laplacian penalty of
-        :meth:`bilaplacian_penalty` with the reference vertex areas M₀."""
+        """The square root D of the penalty on the variables u (c or s), by :attr:`reg_kind`:
+
+        * "bilaplacian": D = √(2R) M₀^{-1/2} L, ½‖Du‖² = R (Lu)ᵀ M₀⁻¹ (Lu) (:meth:`bilaplacian_penalty` with the
+          reference vertex areas M₀), (n, n);
+        * "dirichlet": D = √R G (:func:`dirichlet_root`), ½‖Du‖² = (R/2) uᵀ L u, (2m, n).
+        """
         reg = regularization_weight(reg)
         if reg == 0:
             return None
+        if self.reg_kind == "dirichlet":
+            return (np.sqrt(reg) * dirichlet_root(self.mesh)).tocsr()
         return (sp.diags(np.sqrt(2 * reg / self.vertex_areas)) @ self.stiffness).tocsr()
 
     def to_factor(self, params: np.ndarray) -> ConformalFactor:
@@ -206,25 +278,53 @@ class MeshModel(SpectralModel):
         return ConformalFactor(fit_harmonic(self.mesh, c, self.lmax_factor).coefficients, name="fit (harmonic)")
 
     def compare(self, params: np.ndarray, target) -> dict:
-        """With the target's per-vertex truth (``target.factors``, e.g. its cMCF factors on this mesh): the
+        """With the target's per-vertex truth (``target.factors`` on ``target.sphere``, its cMCF factors): the
         area-weighted relative L2 error of the factors, the RMS and the Pearson correlation of their logarithms over
-        the vertices, and both ranges.  No Möbius or O(3) alignment: the factors live on the same mesh."""
+        the vertices, and both ranges.
+
+        On the target's own sphere (same vertex count and positions) the factors are compared vertex by vertex: the
+        fit lives on that mesh, no alignment applies.  On another sphere mesh (adaptive refinement, a generic
+        icosphere) the fitted log factors are first Möbius-centred and mapped by the best element of O(3) onto the
+        truth's vertices (:func:`~shspec.mesh.refine.align_vertex_field`); ``aligned`` says which was done."""
         truth = getattr(target, "factors", None)
-        if truth is None or np.shape(truth) != (self.nparams,):
+        sphere = getattr(target, "sphere", None)
+        if truth is None or sphere is None or np.shape(truth) != (sphere.nvertices,):
             return {}
         c, truth = self._factors(params), np.asarray(truth, dtype=float)
-        w = self.vertex_areas
-        lc, lt = np.log(c), np.log(truth)
-        return {"factor_error": float(np.sqrt(w @ (c - truth) ** 2 / (w @ truth ** 2))),
+        lt = np.log(truth)
+        same = self._on(sphere)
+        if same:
+            lc, w = np.log(c), self.vertex_areas
+        else:
+            lc = align_vertex_field(self.mesh, np.log(c), sphere, lt).values
+            w = vertex_areas(sphere)
+        ct = np.exp(lc)
+        return {"factor_error": float(np.sqrt(w @ (ct - truth) ** 2 / (w @ truth ** 2))),
                 "log_rms": float(np.sqrt(w @ (lc - lt) ** 2 / w.sum())),
                 "log_correlation": float(np.corrcoef(lc, lt)[0, 1]),
+                "aligned": not same,
                 "fitted_range": [float(c.min()), float(c.max())], "truth_range": [float(truth.min()), float(truth.max())]}
+
+    def _on(self, sphere) -> bool:
+        """Whether ``sphere`` is this model's own mesh (same vertices in the same order)."""
+        return (isinstance(sphere, TriangleMesh) and sphere.nvertices == self.nparams
+                and np.allclose(sphere.vertices, self.mesh.vertices, atol=1e-12))
+
+    def write_files(self, params: np.ndarray, directory) -> list:
+        """Write the fitted per-vertex factors (factors.txt, one per line, vertex order of the model's mesh: a valid
+        ``--init`` file) and the model's sphere mesh (sphere.obj) into ``directory``; returns the file names."""
+        c = self._factors(params)
+        directory = Path(directory)
+        np.savetxt(directory / "factors.txt", c, fmt="%.17g",
+                   header=f"per-vertex conformal factors c of {self.describe()}, vertex order of sphere.obj")
+        save_mesh(self.mesh, directory / "sphere.obj")
+        return ["factors.txt", "sphere.obj"]
 
     def figures(self, params: np.ndarray, target) -> dict:
         """Hammer maps of the fitted factors (with the truth and their ratio when the target has per-vertex
         factors), and the study's validation of spectra when the target has its mesh."""
         truth = getattr(target, "factors", None)
-        truth = truth if truth is not None and np.shape(truth) == (self.nparams,) else None
+        truth = truth if truth is not None and self._on(getattr(target, "sphere", None)) else None
         out = {"vertex_factors.png": plot_vertex_factors(self.mesh, self._factors(params), truth)}
         if truth is not None and getattr(target, "mesh", None) is not None:
             k = min(np.size(target.eigenvalues), self.nparams - 1)

@@ -30,6 +30,7 @@ import numpy as np
 from ..embed.distances import surface_distance
 from ..embed.embed import EmbedOptions, EmbedResult, embed
 from ..checks import check_int
+from ..mesh.cotan import vertex_areas
 from ..errors import InvalidArgumentError
 from ..inverse import FitOptions, Target, fit
 from ..mesh.cmcf import cmcf
@@ -57,17 +58,28 @@ class RecursiveOptions:
         amplitude 0.02).
     embed : EmbedOptions
         Options of every re-embedding (default: no self-intersection count).
-    warm_start : bool
-        Fit pass k ≥ 2 on the previous re-embedded surface (see the module notes); False: on its cMCF sphere.
+    warm_start : bool or "init"
+        Fit pass k ≥ 2 on the previous re-embedded surface (True, see the module notes); False: on its cMCF sphere
+        from the fit's own start; "init": on its cMCF sphere, started (``fit(..., init=...)``) from the transferred
+        factors, the cMCF factors of the re-embedded surface scaled to the target's area.
+    log_factors : bool
+        Fit s = log c (``MeshModel(transform="exp")``).
+    reg_kind : str
+        The mesh regularizer (:data:`~shspec.mesh.model.REGULARIZER_KINDS`).
     """
 
     passes: int = 2
     fit: object = field(default_factory=_default_fit_options)
     embed: EmbedOptions = field(default_factory=lambda: EmbedOptions(check_intersections=False))
-    warm_start: bool = True
+    warm_start: bool | str = True
+    log_factors: bool = False
+    reg_kind: str = "bilaplacian"
 
     def __post_init__(self):
         check_int(self.passes, "RecursiveOptions.passes", minimum=1)
+        if self.warm_start not in (True, False, "init"):
+            raise InvalidArgumentError(f"RecursiveOptions.warm_start must be True, False or 'init', got "
+                                       f"{self.warm_start!r}")
         if not isinstance(self.fit, FitOptions):
             raise InvalidArgumentError("RecursiveOptions.fit must be FitOptions")
         if not isinstance(self.embed, EmbedOptions):
@@ -155,10 +167,12 @@ def recursive_fit(target, sphere: TriangleMesh | None = None, options: Recursive
     lam_star = target.eigenvalues
     k = lam_star.size
     reference, base = sphere, np.ones(sphere.nvertices)
+    init = None
     passes = []
     for p in range(opt.passes):
         cpu = time.process_time()
-        result = fit(target, MeshModel(reference), opt.fit)
+        model = MeshModel(reference, transform="exp" if opt.log_factors else "identity", reg_kind=opt.reg_kind)
+        result = fit(target, model, opt.fit, init=init)
         best = result.best
         c = base * np.asarray(best.params, dtype=float)
         emb = embed(sphere, c, opt.embed)
@@ -176,7 +190,10 @@ def recursive_fit(target, sphere: TriangleMesh | None = None, options: Recursive
         if p + 1 < opt.passes:
             flow = cmcf(emb.mesh)
             sphere = flow.sphere
-            if opt.warm_start:
+            if opt.warm_start == "init":
+                reference, base = flow.sphere, np.ones(sphere.nvertices)
+                init = flow.factors * (target.area_estimate() / float(flow.factors @ vertex_areas(flow.sphere)))
+            elif opt.warm_start:
                 reference, base = emb.mesh, flow.factors
             else:
                 reference, base = flow.sphere, np.ones(sphere.nvertices)
