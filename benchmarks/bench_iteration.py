@@ -45,7 +45,7 @@ from shspec.sphere.factor import ConformalFactor  # noqa: E402
 from shspec.sphere.harmonics import degrees  # noqa: E402
 from shspec.sphere.random import random_coefficients  # noqa: E402
 
-CASES = [(20, 10, 120, 7), (30, 15, 256, 7), (24, 10, 300, 7), (60, 30, 500, 2)]  # (Lb, La, K, repeats)
+CASES = [(20, 10, 120, 7), (30, 15, 256, 7), (24, 10, 300, 7), (60, 30, 500, 3)]  # (Lb, La, K, repeats)
 GOALS = {"iteration_over_cold_forward_plus_jacobian": 0.5, "cold_forward_over_bare_eigh": 1.0}
 
 

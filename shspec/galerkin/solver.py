@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
-import scipy.linalg
 import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
 
