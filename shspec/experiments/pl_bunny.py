@@ -157,7 +157,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         for j, (title, m) in enumerate(((f"{name} (target)", mesh), ("embedded cMCF factors", emb_true),
                                         (f"embedded fit, R = {reg:g}", emb_fit))):
             render_mesh(m, ax=fig.add_subplot(1, 5, j + 3, projection="3d"), up="y", view=(15.0, 30.0), title=title)
-        files.append(f"figure1_{name}.png")
+        files.append(f"figure1_{name}.png" if f"figure1_{name}.png" not in files else f"figure1_{name}_R{reg:g}.png")
         save_figure(fig, out / files[-1])
     fig = plt.figure(figsize=(22, 4.2))
     p1, p2 = rec.passes
@@ -199,7 +199,8 @@ register(Experiment(
     name="pl-bunny", title="Regularized, recursive and adaptive PL fits of the bunny, spot and blub in log factors",
     reproduces="the study's Sections 3.2.2 (regularized fit, Figure 1, R = 0.05) and 3.2.3 (recursive fit, Figure "
                "2, R = 0.1), and its open problem A.5 (adaptive refinement)",
-    defaults={"runs": ["bunny_600:0.05", "spot_600:0.05", "blub_600:0.05"], "mesh_dir": "/work/shared/data/meshes",
+    defaults={"runs": ["bunny_600:0.05", "spot_600:0.05", "blub_600:0.05", "bunny_600:0.001"],
+              "mesh_dir": "/work/shared/data/meshes",
               "numeig": 599, "max_iter": 300, "optimizer": "lbfgs", "seed": 0, "path": [1.0, 0.1, 0.01, 0.001, 0.0001],
               "recursive_reg": 0.1, "adaptive_subdivisions": 2, "embed_iterations": 100, "distance_samples": 5000},
     quick={"runs": ["bunny_600:0.05"], "mesh_dir": "/work/shared/data/meshes", "numeig": 12, "max_iter": 5,

@@ -73,7 +73,8 @@ class MeshQuality:
     min_angle, max_angle : float
         Smallest and largest triangle angle (degrees).
     aspect_max : float
-        Largest ratio longest edge / shortest altitude·(√3/2) (1 for an equilateral triangle).
+        Largest √(ℓ_max²·(√3/4) / A) over the faces, ℓ_max the longest edge and A the area (1 for an equilateral
+        triangle, large for a sliver).
     euler : int
         V − E + F (2 for a sphere).
     outward : bool
