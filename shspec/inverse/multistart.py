@@ -95,7 +95,8 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
         Run the starts on it (a process pool, or a Dask cluster's ``Client.get_executor()``; see
         :func:`shspec.parallel.make_executor`): each start is independent and seeded by its index, so the results are
         those of a serial run.  Finished starts are checkpointed as they arrive; a start still running when the
-        fit stops is run again from its beginning on resume.
+        fit stops is run again from its beginning on resume.  Run at most one start per process at a time
+        (processes, or Dask workers with one thread each): pyshtools' grid routines are not thread-safe.
 
     Returns
     -------
