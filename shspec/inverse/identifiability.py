@@ -88,6 +88,18 @@ class Identifiability:
         return text
 
 
+def _checked(model, params, numeig, rank_tol):
+    """The validated arguments of the two analyses, and the spectrum at ``params``."""
+    if not isinstance(model, SpectralModel):
+        raise InvalidArgumentError(f"model must be a SpectralModel, got {type(model).__name__}")
+    p = np.asarray(params, dtype=float)
+    if p.shape != (model.nparams,):
+        raise InvalidArgumentError(f"params must have shape ({model.nparams},), got {p.shape}")
+    numeig = check_int(numeig, "numeig", minimum=2)
+    rank_tol = check_float(rank_tol, "rank_tol", positive=True)
+    return p, numeig, rank_tol, model.spectrum(p, numeig)
+
+
 def identifiability(model: SpectralModel, params, numeig: int, *, fit_area: bool = False, residuals=None,
                     rank_tol: float = 1e-12) -> Identifiability:
     """The identifiability of ``params`` (nparams,) by the first ``numeig`` eigenvalues of ``model``.
@@ -110,14 +122,7 @@ def identifiability(model: SpectralModel, params, numeig: int, *, fit_area: bool
     InvalidArgumentError
         For a model that is not a SpectralModel, parameters of the wrong shape, or bad K.
     """
-    if not isinstance(model, SpectralModel):
-        raise InvalidArgumentError(f"model must be a SpectralModel, got {type(model).__name__}")
-    p = np.asarray(params, dtype=float)
-    if p.shape != (model.nparams,):
-        raise InvalidArgumentError(f"params must have shape ({model.nparams},), got {p.shape}")
-    numeig = check_int(numeig, "numeig", minimum=2)
-    rank_tol = check_float(rank_tol, "rank_tol", positive=True)
-    spec = model.spectrum(p, numeig)
+    p, numeig, rank_tol, spec = _checked(model, params, numeig, rank_tol)
     free = model.free_parameters(fit_area)
     jac = (model.jacobian(spec)[1:] / spec.eigenvalues[1:, None])[:, free]
     sym = model.symmetry_directions(p)[free]
@@ -160,14 +165,7 @@ def determined_directions(model: SpectralModel, params, numeig: int, *, rank_tol
     InvalidArgumentError
         For a model that is not a SpectralModel, parameters of the wrong shape, or bad K or tolerance.
     """
-    if not isinstance(model, SpectralModel):
-        raise InvalidArgumentError(f"model must be a SpectralModel, got {type(model).__name__}")
-    p = np.asarray(params, dtype=float)
-    if p.shape != (model.nparams,):
-        raise InvalidArgumentError(f"params must have shape ({model.nparams},), got {p.shape}")
-    numeig = check_int(numeig, "numeig", minimum=2)
-    rank_tol = check_float(rank_tol, "rank_tol", positive=True)
-    spec = model.spectrum(p, numeig)
+    p, numeig, rank_tol, spec = _checked(model, params, numeig, rank_tol)
     jac = model.jacobian(spec)[1:] / spec.eigenvalues[1:, None]
     if model.transform == "exp":
         jac = jac * p[None, :]  # ∂/∂s = p ∂/∂p
