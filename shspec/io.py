@@ -38,8 +38,9 @@ def ensure_directory(path: str | os.PathLike, *, error: type[OSError] = OutputEr
     return out
 
 
-def write_csv(path: str | os.PathLike, rows: list[dict]) -> Path:
-    """Write rows (dicts with the same keys, in the order of the first) as a CSV file with a header line.
+def write_csv(path: str | os.PathLike, rows: list[dict], fields: list[str] | None = None) -> Path:
+    """Write rows (dicts) as a CSV file with a header line: the columns ``fields`` (default: the keys of the first
+    row, in order); a row without a column leaves it empty.
 
     Raises
     ------
@@ -51,7 +52,7 @@ def write_csv(path: str | os.PathLike, rows: list[dict]) -> Path:
         raise OutputError(f"no rows to write to {path}")
     try:
         with open(path, "w", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            writer = csv.DictWriter(fh, fieldnames=list(rows[0]) if fields is None else fields, restval="")
             writer.writeheader()
             writer.writerows(rows)
     except OSError as exc:

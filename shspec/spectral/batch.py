@@ -10,7 +10,6 @@ progress), and one CSV table with a row per mesh in the order given.
 
 from __future__ import annotations
 
-import csv
 import json
 import time
 from concurrent.futures import as_completed
@@ -21,7 +20,8 @@ import numpy as np
 from tqdm import tqdm
 
 from ..checks import check_int
-from ..errors import CheckpointError, InvalidArgumentError
+from ..errors import InvalidArgumentError
+from ..io import ensure_directory, write_csv
 from ..mesh.cotan import MASS_KINDS
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.io import MESH_FORMATS, load_mesh
@@ -184,11 +184,7 @@ def run_batch(paths, out, numeig: int, *, mass: str = "lumped", descriptors: boo
     numeig = check_int(numeig, "numeig", minimum=1)
     if mass not in MASS_KINDS:
         raise InvalidArgumentError(f"mass kind must be one of {MASS_KINDS}, got {mass!r}")
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise CheckpointError(f"cannot create output directory {out}: {exc}") from exc
+    out = ensure_directory(out)
     executor = executor if executor is not None else SerialExecutor()
     futures = {executor.submit(mesh_job, str(p), numeig, mass, descriptors=descriptors, topology=topology): i
                for i, p in enumerate(meshes)}
@@ -201,8 +197,5 @@ def run_batch(paths, out, numeig: int, *, mass: str = "lumped", descriptors: boo
             bar.update()
     rows = [_row(r) for r in results]
     fields = list(max(rows, key=len).keys())
-    with open(out / TABLE_NAME, "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=fields)
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv(out / TABLE_NAME, rows, fields)
     return results
