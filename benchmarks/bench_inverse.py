@@ -146,7 +146,8 @@ def bench_bunny(report, max_iter, numeig):
         target = mesh_target(load_mesh(path), lmax=20, numeig=numeig, lmax_factor=10, name=name)
         t_target = time.perf_counter() - t0
         model = MeshModel(target.sphere)
-        result = fit(target, model, FitOptions(schedule=(), starts=1, reg=reg, max_iter=max_iter, start_amplitude=1e-3))
+        result = fit(target, model, FitOptions(optimizer="lm", schedule=(), starts=1, reg=reg, max_iter=max_iter,
+                                                start_amplitude=1e-3))
         w = model.vertex_areas
         c_true = target.factors
 
@@ -190,7 +191,7 @@ def _mesh_case(target, model, options, init=None):
 
     result = fit(target, model, options, init=init)
     best = result.best
-    out = {"model": model.describe(), "optimizer": options.optimizer, "R": options.reg, "numeig": target.numeig,
+    out = {"model": model.describe(), "optimizer": options.optimizer or model.default_optimizer, "R": options.reg, "numeig": target.numeig,
            "time_s": result.seconds, "iterations": best.iterations, "status": best.status,
            "relative_residual": best.relative_residual, "energy": best.energy,
            "load_average": list(os.getloadavg())}
@@ -221,7 +222,8 @@ def bench_mesh_log(report, quick):
     mesh = _load_4pi("bunny_600")
     tgt = {src: mesh_target(mesh, 12, k, 6, name="bunny_600", source=src) for src in ("pl", "cmcf")}
     R = 0.05
-    base = FitOptions(schedule=(), starts=1, basin_hops=0, start_amplitude=1e-3, max_iter=30 if quick else 150)
+    base = FitOptions(optimizer="lm", schedule=(), starts=1, basin_hops=0, start_amplitude=1e-3,
+                      max_iter=30 if quick else 150)
     cases = [("a_lm_log", "pl", "exp", "lm", R), ("a_lm_linear", "pl", "identity", "lm", R),
              ("a_lbfgs_log", "pl", "exp", "lbfgs", R), ("b_lm_log_R0", "cmcf", "exp", "lm", 0.0),
              ("b_lm_log", "cmcf", "exp", "lm", R)]

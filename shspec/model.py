@@ -67,6 +67,8 @@ class SpectralModel(ABC):
     nparams: int
     #: map from the optimizer's variables u to the parameters p, one of :data:`TRANSFORMS`
     transform: str = "identity"
+    #: the optimizer a fit uses when its options name none (measured per discretization)
+    default_optimizer: str = "lm"
 
     # -- the forward problem ----------------------------------------------------------------------------------------
 

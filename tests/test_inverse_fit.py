@@ -199,7 +199,7 @@ def test_pl_recovery_error_grows_with_amplitude():
     for p in (0.2, 0.8):
         target = mesh_target(star_surface(3, 3, p, subdivisions=2), lmax=8, numeig=40, lmax_factor=4)
         model = MeshModel(target.sphere)
-        r = fit(target, model, FitOptions(starts=1, max_iter=25, reg=1e-4, start_amplitude=0.02, schedule=()))
+        r = fit(target, model, FitOptions(optimizer="lm", starts=1, max_iter=25, reg=1e-4, start_amplitude=0.02, schedule=()))
         w = model.vertex_areas
         errors.append(np.sqrt(w @ (r.best.params - target.factors) ** 2 / (w @ target.factors ** 2)))
     assert errors[1] > errors[0]
@@ -355,3 +355,18 @@ def test_orienting_a_new_block_finds_its_place_relative_to_the_lower_ones():
     _orient_new_block(problem, progress, 1)
     assert progress.relative_residual < 1e-10
     assert align(ConformalFactor(progress.params), truth).relative_error < 1e-8
+
+
+def test_the_optimizer_default_is_the_models_in_api_and_cli(tmp_path):
+    from shspec.inverse.schedule import FitProblem
+    from shspec.mesh.model import MeshModel
+    from shspec.mesh.shapes import icosphere
+
+    target = harmonic_target(blob_factor(), 8, 20)
+    assert FitProblem(HarmonicModel(8, 6), target, FitOptions()).optimizer == "lm"
+    assert FitProblem(MeshModel(icosphere(1)), target, FitOptions()).optimizer == "lbfgs"
+    assert FitProblem(MeshModel(icosphere(1)), target, FitOptions(optimizer="lm")).optimizer == "lm"
+    assert main(["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "1",
+                 "--max-iter", "2", "--schedule", "none", "--basin-hops", "0", "--out", str(tmp_path), "--quiet"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["optimizer"] == "lm" and summary["options"]["optimizer"] is None

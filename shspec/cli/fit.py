@@ -127,7 +127,7 @@ def register(subparsers) -> None:
     p.add_argument("--starts", type=int, default=d.starts, help="random starts")
     p.add_argument("--seed", type=int, default=d.seed, help="random seed")
     p.add_argument("--optimizer", choices=OPTIMIZERS, default=None,
-                   help=f"optimizer (default: {d.optimizer} for harmonic fits; lbfgs for mesh fits, which with every "
+                   help="optimizer (default: the model's: lm for harmonic fits; lbfgs for mesh fits, which with every "
                    "eigenvalue of bunny_600 reached LM's result in 11 s against 16 s, and at 1200 vertices where LM "
                    "diverged: benchmarks/results/bench_inverse.json mesh_all)")
     p.add_argument("--weights", choices=WEIGHTINGS, default=d.weights, help="eigenvalue weights")
@@ -237,8 +237,7 @@ def _fit(args) -> int:
     model = MODELS[args.model](args, target)
     if not args.log_factors and args.adaptive:
         raise InvalidArgumentError("--adaptive fits log factors (refinement follows log c); drop --no-log-factors")
-    optimizer = args.optimizer or ("lbfgs" if args.model == "mesh" else FitOptions().optimizer)
-    options = FitOptions(optimizer=optimizer, weights=args.weights, reg=args.reg, area=args.area,
+    options = FitOptions(optimizer=args.optimizer, weights=args.weights, reg=args.reg, area=args.area,
                          schedule=_schedule(args.schedule, target.numeig, args.lmax_factor), starts=args.starts,
                          seed=args.seed, start_amplitude=args.amplitude, max_iter=args.max_iter,
                          basin_hops=args.basin_hops, checkpoint_every=args.checkpoint_every,

@@ -35,7 +35,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
                         "surface_vertices": mesh.vertices, "cmcf_factors": target.factors,
                         "target_eigenvalues": target.eigenvalues}
         for k in ks:
-            opts = FitOptions(starts=cfg["starts"], max_iter=cfg["max_iter"], reg=cfg["reg"], seed=cfg["seed"],
+            opts = FitOptions(optimizer="lm", starts=cfg["starts"], max_iter=cfg["max_iter"], reg=cfg["reg"], seed=cfg["seed"],
                               schedule=(Stage(numeig=k),))
             result = fit(target, model, opts)
             best = result.best

@@ -25,7 +25,7 @@ from .fitting import (Progress, harmonic_errors, single_threaded, spearman, spec
 
 def run(cfg: dict, out, progress: bool) -> Finding:
     l, m, k = cfg["l"], cfg["m"], cfg["numeig"]
-    opts = FitOptions(schedule=(), starts=cfg["starts"], max_iter=cfg["max_iter"], reg=cfg["reg"], seed=cfg["seed"])
+    opts = FitOptions(optimizer="lm", schedule=(), starts=cfg["starts"], max_iter=cfg["max_iter"], reg=cfg["reg"], seed=cfg["seed"])
     rows, h5, meshes, results = [], {}, [], []
     bar = Progress(progress, len(cfg["p_values"]), "pl-perturbation")
     with single_threaded():

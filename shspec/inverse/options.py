@@ -82,10 +82,12 @@ class FitOptions:
 
     Attributes
     ----------
-    optimizer : {"lm", "lbfgs", "bfgs", "gd"}
-        Default "lm" (Levenberg–Marquardt): it reached the same minimum as L-BFGS and BFGS in 4–5× less time
-        and converges quadratically near a zero-residual solution; gradient descent had not converged after 1000
-        iterations (benchmarks/results/bench_inverse.json).
+    optimizer : {"lm", "lbfgs", "bfgs", "gd"} or None
+        None (the default, also the command line's): the model's :attr:`~shspec.model.SpectralModel.default_optimizer`.
+        Harmonic models use "lm" (Levenberg–Marquardt): it reached the same minimum as L-BFGS and BFGS in 4–5× less
+        time and converges quadratically near a zero-residual solution; gradient descent had not converged after
+        1000 iterations.  Mesh models use "lbfgs": at 600 vertices and 599 eigenvalues it reached LM's point in 11 s
+        against 16 s, and at 1200 vertices LM diverged (benchmarks/results/bench_inverse.json).
     weights : {"relative", "absolute"}
         Eigenvalue weights, see :data:`WEIGHTINGS`.
     reg : float
@@ -145,7 +147,7 @@ class FitOptions:
         Print one line per stage and a progress line per iteration on stderr.
     """
 
-    optimizer: str = "lm"
+    optimizer: str | None = None
     weights: str = "relative"
     reg: float = 0.0
     area: str = "auto"
@@ -169,7 +171,7 @@ class FitOptions:
     progress: bool = False
 
     def __post_init__(self):
-        if self.optimizer not in OPTIMIZERS:
+        if self.optimizer is not None and self.optimizer not in OPTIMIZERS:
             raise InvalidArgumentError(f"optimizer must be one of {OPTIMIZERS}, got {self.optimizer!r}")
         if self.weights not in WEIGHTINGS:
             raise InvalidArgumentError(f"weights must be one of {WEIGHTINGS}, got {self.weights!r}")

@@ -46,6 +46,7 @@ def summary(result: FitResult) -> dict:
     out = {
         "target": target.name, "source": target.source, "model": result.model.describe(),
         "numeig": target.numeig, "options": options_dict(opt),
+        "optimizer": opt.optimizer or result.model.default_optimizer,
         "energy": best.energy, "relative_residual": best.relative_residual,
         "success_definition": f"a start succeeds when max_i |lambda_i - lambda*_i| / lambda*_i <= {opt.success_tol:g}",
         "successes": result.success_count, "time_s": result.seconds, "interrupted": result.interrupted,

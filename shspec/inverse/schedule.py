@@ -127,6 +127,7 @@ class FitProblem:
         if not isinstance(options, FitOptions):
             raise InvalidArgumentError(f"options must be FitOptions, got {type(options).__name__}")
         self.model, self.target, self.options = model, target, options
+        self.optimizer = options.optimizer or model.default_optimizer
         if init is not None:
             init = np.array(init, dtype=float)
             if init.shape != (model.nparams,) or not np.all(np.isfinite(init)):
@@ -252,7 +253,7 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
             params = problem.enter_stage(s, params, np.random.default_rng([*rng_seed, s + 1]))
             progress.stage, progress.base = s, params
         obj = problem.objective(s, progress.base)
-        optimizer = make_optimizer(opt.optimizer, obj, obj.initial(), opt, progress.state if resumed else None)
+        optimizer = make_optimizer(problem.optimizer, obj, obj.initial(), opt, progress.state if resumed else None)
         max_iter = problem.stages[s].max_iter or opt.max_iter
 
         def record():
@@ -323,7 +324,7 @@ def _hop_once(problem: FitProblem, progress: StartProgress, s: int, moves: list,
     def run(params, iters):
         try:
             obj = problem.objective(s, params)
-            optimizer = make_optimizer(opt.optimizer, obj, obj.initial(), opt)
+            optimizer = make_optimizer(problem.optimizer, obj, obj.initial(), opt)
         except NotPositiveError:  # a move that leaves ρ non-positive
             return None
         hist = []

@@ -101,6 +101,10 @@ class MeshModel(SpectralModel):
         Lumped areas m_j of the reference mesh (length unit squared).
     """
 
+    #: L-BFGS: at 600 vertices and every eigenvalue it reached LM's point in 11 s against 16 s; at 1200 vertices
+    #: LM's dense normal equations diverged (benchmarks/results/bench_inverse.json, mesh_all)
+    default_optimizer = "lbfgs"
+
     def __init__(self, mesh: TriangleMesh, options: EigenOptions | None = None, *, transform: str = "identity",
                  lmax_factor: int | None = None, reg_kind: str = "bilaplacian"):
         if not isinstance(mesh, TriangleMesh):

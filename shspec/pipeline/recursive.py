@@ -42,7 +42,7 @@ __all__ = ["RecursiveOptions", "RefinementPass", "RecursiveResult", "recursive_f
 
 
 def _default_fit_options():
-    return FitOptions(schedule=(), basin_hops=0, starts=1, max_iter=40, reg=1e-5, start_amplitude=0.02)
+    return FitOptions(optimizer="lm", schedule=(), basin_hops=0, starts=1, max_iter=40, reg=1e-5, start_amplitude=0.02)
 
 
 @dataclass(frozen=True)
