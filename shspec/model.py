@@ -123,10 +123,6 @@ class SpectralModel(ABC):
         """Levels, coarse to fine, that a stage may restrict the model to (empty: none)."""
         return ()
 
-    def level_numeig(self, level: int) -> int:
-        """How many eigenvalues overdetermine the parameters of ``level`` (a schedule's count for that stage)."""
-        raise InvalidArgumentError(f"{self.describe()} has no levels")
-
     def restrict(self, level: int | None) -> "SpectralModel":
         """The model restricted to ``level`` (None: the model itself); its parameters are a prefix of this model's
         (see :meth:`to_level`)."""

@@ -303,10 +303,6 @@ class HarmonicModel(SpectralModel):
         """The factor degrees 2 … La (degree 1 is the gauge)."""
         return tuple(range(2, self.lmax_factor + 1))
 
-    def level_numeig(self, level: int) -> int:
-        """(L + 2)² eigenvalues for degree L: more than the (L + 1)² coefficients, whole sphere clusters."""
-        return (int(level) + 2) ** 2
-
     def restrict(self, level: int | None) -> "HarmonicModel":
         """The model of factor degree ``level`` ≤ La on the same basis, sharing (a restriction of) the table."""
         if level is None or level == self.lmax_factor:

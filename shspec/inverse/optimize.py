@@ -2,8 +2,9 @@
 
 All four work on an :class:`~shspec.inverse.energy.Objective` over the free parameters and take one iteration per
 :meth:`step`.  Their whole state is a dict of arrays (:meth:`state`), so a checkpoint taken between two steps
-resumes bit for bit; that is why they are written here rather than taken from ``scipy.optimize``, whose internal
-state cannot be saved.
+resumes exactly (bit for bit unless a model's warm-started eigensolve was used just before the checkpoint: the
+resumed run solves that point cold, equal to ~1e-15); that is why they are written here rather than taken from
+``scipy.optimize``, whose internal state cannot be saved.
 
 Positivity.  A trial point where ρ ≤ 0 somewhere (the model raises :class:`NotPositiveError`) counts as infinitely
 bad: line searches halve the step, Levenberg–Marquardt rejects it and raises its damping.  Every accepted point is a

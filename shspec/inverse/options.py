@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..checks import check_float, check_int
-from ..errors import InvalidArgumentError
+from ..errors import InvalidArgumentError, NotPositiveError
+from .align import align
 from .identifiability import identifiability
 
 __all__ = ["OPTIMIZERS", "WEIGHTINGS", "AREA_MODES", "Stage", "FitOptions", "StartResult", "FitResult",
@@ -290,14 +291,39 @@ class FitResult:
 
     def identifiability(self):
         """What the matched eigenvalues determine at the best solution
-        (:func:`~shspec.inverse.identifiability.identifiability`, with its final residuals)."""
-        best = self.best
-        k = best.eigenvalues.size
-        ref = self.target.eigenvalues[:k]
-        rel = np.zeros(k)
-        rel[1:] = (best.eigenvalues[1:] - ref[1:]) / ref[1:]
-        return identifiability(self.model, best.params, k, fit_area=fits_area(self.options, self.target),
-                               residuals=rel)
+        (:func:`~shspec.inverse.identifiability.identifiability`, with its final residuals).  Computed once."""
+        if "_identifiability" not in self.__dict__:
+            best = self.best
+            k = best.eigenvalues.size
+            ref = self.target.eigenvalues[:k]
+            rel = np.zeros(k)
+            rel[1:] = (best.eigenvalues[1:] - ref[1:]) / ref[1:]
+            # frozen: the memo goes straight into the instance dict (it is derived, not state)
+            object.__setattr__(self, "_identifiability", identifiability(
+                self.model, best.params, k, fit_area=fits_area(self.options, self.target), residuals=rel))
+        return self.__dict__["_identifiability"]
+
+    def alignment(self):
+        """The best solution, as harmonic ρ, aligned with the target's truth up to Möbius and O(3)
+        (:func:`~shspec.inverse.align.align`); None when the target knows no truth.  Computed once (an alignment
+        takes seconds).
+
+        Raises
+        ------
+        NotPositiveError
+            The solution's harmonic expansion or the truth is not positive, so it cannot be Möbius-centred (a
+            low-degree expansion of extreme per-vertex factors can dip below 0).
+        """
+        if "_alignment" not in self.__dict__:
+            try:
+                value = None if self.target.truth is None else align(self.factor(), self.target.truth)
+            except NotPositiveError as exc:
+                value = exc
+            object.__setattr__(self, "_alignment", value)
+        value = self.__dict__["_alignment"]
+        if isinstance(value, NotPositiveError):
+            raise value
+        return value
 
     def to_summary(self) -> dict:
         """A JSON-ready summary: model, target, options, energies and residuals of every start, the best solution

@@ -14,10 +14,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..errors import NotPositiveError
+from ..errors import InvalidArgumentError, NotPositiveError
 from ..io import ensure_directory
 from . import plots
-from .align import align
 from .checkpoint import options_dict, save_result
 from .options import FitResult
 
@@ -26,14 +25,12 @@ __all__ = ["summary", "write_result"]
 
 def _alignment(result: FitResult) -> dict | None:
     """Errors of the best solution against the target's harmonic truth after alignment, or why there are none."""
-    truth = result.target.truth
-    if truth is None:
-        return None
     try:
-        aligned = align(result.factor(), truth)
-    except NotPositiveError as exc:
-        # a low-degree expansion of extreme per-vertex factors can dip below 0: report it, keep the rest
+        aligned = result.alignment()
+    except NotPositiveError as exc:  # the model's harmonic expansion dips below 0: report it, keep the rest
         return {"skipped": f"no alignment: {exc}"}
+    if aligned is None:
+        return None
     return {"relative_error": aligned.relative_error, "power_error": aligned.power_error,
             "mirrored": aligned.mirrored, "angles": aligned.angles.tolist()}
 
@@ -41,7 +38,7 @@ def _alignment(result: FitResult) -> dict | None:
 def summary(result: FitResult) -> dict:
     """The JSON-ready summary of a fit (module notes)."""
     if not isinstance(result, FitResult):
-        raise TypeError(f"expected a FitResult, got {type(result).__name__}")
+        raise InvalidArgumentError(f"expected a FitResult, got {type(result).__name__}")
     best, target, opt = result.best, result.target, result.options
     out = {
         "target": target.name, "source": target.source, "model": result.model.describe(),
@@ -55,11 +52,7 @@ def summary(result: FitResult) -> dict:
                     "iterations": r.iterations, "time_s": r.seconds, "status": r.status, "success": r.success}
                    for r in result.starts],
     }
-    try:
-        out["cilm"] = result.factor().to_cilm().tolist()
-    except NotPositiveError as exc:  # pragma: no cover - to_factor does not check positivity today
-        out["cilm"] = None
-        out["cilm_skipped"] = str(exc)
+    out["cilm"] = result.factor().to_cilm().tolist()
     out["identifiability"] = result.identifiability().to_dict()
     alignment = _alignment(result)
     if alignment is not None:

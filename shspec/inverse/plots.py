@@ -9,7 +9,6 @@ import numpy as np
 
 from ..errors import InvalidArgumentError
 from ..sphere.factor import ConformalFactor
-from .align import align
 from .options import FitResult
 
 __all__ = ["plot_factors", "plot_history", "plot_residuals"]
@@ -30,7 +29,7 @@ def plot_factors(result: FitResult, aligned=None):
     ----------
     result : FitResult
     aligned : Alignment, optional
-        The fit's alignment with the truth (default: computed).
+        The fit's alignment with the truth (default: :meth:`FitResult.alignment`, computed once per result).
 
     Raises
     ------
@@ -47,7 +46,7 @@ def plot_factors(result: FitResult, aligned=None):
         fit.plot(ax=fig.add_subplot(1, 1, 1, projection="hammer"), title="fit (no truth known)")
         return fig
     if aligned is None:
-        aligned = align(fit, target.truth)
+        aligned = result.alignment()
     fig = plt.figure(figsize=(16, 4.8))
     axes = [fig.add_subplot(1, 3, i + 1, projection="hammer") for i in range(3)]
     ref, fitted = ConformalFactor(aligned.reference, name="target"), ConformalFactor(aligned.aligned, name="fit")
