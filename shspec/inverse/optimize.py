@@ -11,8 +11,8 @@ bad: line searches halve the step, Levenberg–Marquardt rejects it and raises i
 valid metric, so no fit ever crashes on it.
 
 Levenberg–Marquardt ("lm") minimizes ½‖r‖² with the analytic Jacobian of the residuals (one quadratic form per
-eigenvalue), solving (JᵀJ + μ diag(JᵀJ)) δ = −Jᵀr with Nielsen's update of μ.  Near a zero-residual solution it
-converges quadratically.  It follows the *sorted* eigenvalues: where two of them cross, λ_i is only Lipschitz and
+eigenvalue), taking the damped step (JᵀJ + μ diag(JᵀJ)) δ = −Jᵀr from an SVD, with Nielsen's update of μ and
+geodesic acceleration.  Near a zero-residual solution it converges quadratically.  It follows the *sorted* eigenvalues: where two of them cross, λ_i is only Lipschitz and
 the Jacobian jumps, which costs a few rejected steps; fine away from exact degeneracy (random starts are far from
 the round sphere, whose multiplets are exactly degenerate).  L-BFGS ("lbfgs"), BFGS ("bfgs") and gradient descent
 ("gd") use the adjoint gradient only, with a backtracking Armijo line search.
@@ -139,10 +139,27 @@ class _Optimizer:
 
 
 class LevenbergMarquardt(_Optimizer):
-    """Levenberg–Marquardt on the residuals with Marquardt's diagonal scaling and Nielsen's damping update."""
+    """Levenberg–Marquardt on the residuals with Marquardt's column scaling, Nielsen's damping update and, by
+    default, geodesic acceleration.
+
+    Each iteration takes one SVD of the column-scaled Jacobian J D⁻¹ = U S Vᵀ (D = the column norms) and solves
+    every trial damping μ from it: the velocity v = −D⁻¹ V S(S² + μ)⁻¹ Uᵀ r.  The normal equations JᵀJ would square
+    a condition number that reaches 1e9 at the study's setting (La = 15, 256 eigenvalues).
+
+    Geodesic acceleration (``FitOptions.lm_acceleration``): the second directional derivative r_vv is taken by a
+    finite difference along v (one extra forward solve), a = −D⁻¹ V S(S² + μ)⁻¹ Uᵀ r_vv, and the step is v + a/2
+    when 2‖Da‖ ≤ α‖Dv‖ (α = 0.75), else v alone.  Near the solutions of these fits the residual depends on the weak
+    directions more at second order than at first, so the linear model alone gains a few per cent per iteration
+    there.  M. K. Transtrum, J. P. Sethna, "Improvements to the Levenberg–Marquardt algorithm for nonlinear
+    least-squares minimization", arXiv:1201.5885 (2012).
+    """
 
     name = "lm"
     _needs_jacobian = True
+    #: Finite-difference step of r_vv, relative to the velocity (Transtrum & Sethna's choice).
+    _FD_STEP = 0.1
+    #: Largest accepted ratio 2‖a‖/‖v‖ of acceleration to velocity.
+    _ALPHA = 0.75
 
     def _init(self) -> None:
         self.mu = self.options.lm_damping
@@ -155,26 +172,48 @@ class LevenbergMarquardt(_Optimizer):
         self.mu = float(state["mu"])
         self.nu = float(state["nu"])
 
+    def _acceleration(self, v, jv, solve, d):
+        """a for velocity v (J v = jv), the damped solve of the current μ and column scale d, or None where it does not
+        apply (a trial that is not a metric, or an acceleration too large for the second-order model)."""
+        h = self._FD_STEP
+        trial = self._try(self.x + h * v)
+        if trial is None:
+            return None
+        rvv = (2.0 / h) * ((trial.residuals - self.ev.residuals) / h - jv)
+        a = solve(rvv)
+        ok = 2.0 * np.linalg.norm(a * d) <= self._ALPHA * np.linalg.norm(v * d)
+        return a if ok else None
+
     def _step(self) -> None:
         J, r = self.ev.jacobian, self.ev.residuals
-        A = J.T @ J
-        g = J.T @ r
-        # Marquardt's scaling by diag(JᵀJ) makes μ dimensionless; the floor keeps parameters the residuals do not
-        # see (yet) from making the system singular.
-        d = np.maximum(np.diag(A), 1e-12 * max(np.max(np.diag(A)), 1e-300))
+        # Marquardt's scaling makes μ dimensionless; the floor keeps parameters the residuals do not see (yet) from
+        # dividing by zero.
+        d = np.sqrt(np.einsum("ij,ij->j", J, J))
+        d = np.maximum(d, 1e-12 * max(np.max(d), 1e-300))
+        try:
+            U, s, Vt = scipy.linalg.svd(J / d, full_matrices=False, check_finite=False, lapack_driver="gesdd")
+        except np.linalg.LinAlgError:  # pragma: no cover - gesdd's rare failure to converge
+            U, s, Vt = scipy.linalg.svd(J / d, full_matrices=False, check_finite=False, lapack_driver="gesvd")
+        ur = U.T @ r
         for _ in range(_MAX_BACKTRACK):
-            try:
-                c = scipy.linalg.cho_factor(A + self.mu * np.diag(d), check_finite=False)
-                delta = -scipy.linalg.cho_solve(c, g, check_finite=False)
-            except np.linalg.LinAlgError:
-                self.mu, self.nu = nielsen_update(self.mu, self.nu, float("nan"))
-                continue
-            predicted = -(delta @ g) - 0.5 * delta @ (A @ delta)
-            ev = self._try(self.x + delta, jacobian=True)
+            filt = s / (s * s + self.mu)
+
+            def solve(rhs):
+                return -(Vt.T @ (filt * (U.T @ rhs))) / d
+
+            v = -(Vt.T @ (filt * ur)) / d
+            jv = J @ v
+            predicted = -(r @ jv) - 0.5 * (jv @ jv)
+            step = v
+            if self.options.lm_acceleration:
+                a = self._acceleration(v, jv, solve, d)
+                if a is not None:
+                    step = v + 0.5 * a
+            ev = self._try(self.x + step, jacobian=True)
             gain = (self.ev.energy - ev.energy) / predicted if ev is not None and predicted > 0 else float("nan")
             self.mu, self.nu = nielsen_update(self.mu, self.nu, gain)
             if gain > 0:
-                self._accept(self.x + delta, ev)
+                self._accept(self.x + step, ev)
                 return
         self.status = "stalled"
 
