@@ -243,3 +243,44 @@ def test_noisy_spectra_are_fitted_to_the_error_the_noise_gain_predicts(sigma):
     observed = np.linalg.norm(delta) / np.linalg.norm(a)
     predicted = identifiability(model, a, k).noise_gain * sigma
     assert predicted / 3 < observed < 3 * predicted
+
+
+def test_identifiability_by_numeig_equals_one_analysis_per_k():
+    """Slicing one spectrum's Jacobian for several K gives what separate spectra of K eigenpairs give."""
+    from shspec.inverse.identifiability import identifiability, identifiability_by_numeig
+    from shspec.sphere.random import random_centred_coefficients
+
+    model = HarmonicModel(10, 4)
+    a = random_centred_coefficients(2, 4, 0.2)
+    rows = identifiability_by_numeig(model, a, [40, 12, 70])
+    assert [r.numeig for r in rows] == [40, 12, 70]
+    for row in rows:
+        alone = identifiability(model, a, row.numeig)
+        assert row.rank == alone.rank and row.underdetermined == alone.underdetermined
+        assert row.noise_gain == pytest.approx(alone.noise_gain, rel=1e-8)
+    assert rows[1].underdetermined and not rows[2].underdetermined
+    with pytest.raises(InvalidArgumentError):
+        identifiability_by_numeig(model, a, [])
+
+
+def test_plan_numeig_recommends_the_smallest_k_within_the_accuracy():
+    from shspec.galerkin.planning import basis_degree_for, candidate_numeigs, plan_numeig
+
+    plan = plan_numeig(4, noise=1e-8, accuracy=1e-6)
+    ks = [r.numeig for r in plan.rows]
+    assert ks == candidate_numeigs(4) and ks[0] == 31 and 36 in ks and ks[-1] == 100
+    ok = [r.numeig for r in plan.rows if not r.underdetermined and r.noise_gain * 1e-8 <= 1e-6]
+    assert plan.numeig == ok[0]
+    # a looser accuracy never asks for more eigenvalues; an impossible one says so
+    assert plan_numeig(4, accuracy=1e-3).numeig <= plan.numeig
+    impossible = plan_numeig(4, noise=1e-2, accuracy=1e-9, candidates=[30, 40])
+    assert impossible.numeig is None and "no K up to 40" in impossible.statement()
+    # the basis: the smallest Lb >= La with (Lb + 1)^2 >= 1.5 K
+    for k in (36, 100, 576):
+        lb = basis_degree_for(k, 4)
+        assert (lb + 1) ** 2 >= 1.5 * k and (lb == 4 or lb ** 2 < 1.5 * k)
+    assert plan.lmax == basis_degree_for(plan.numeig, 4)
+    with pytest.raises(InvalidArgumentError):
+        plan_numeig(4, np.ones(7))
+    with pytest.raises(InvalidArgumentError):
+        plan_numeig(4, noise=0.0)

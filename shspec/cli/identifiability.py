@@ -7,10 +7,8 @@ import json
 
 import numpy as np
 
-from ..checks import check_float
 from ..errors import InvalidArgumentError
-from ..galerkin import HarmonicModel
-from ..inverse.identifiability import identifiability
+from ..galerkin.planning import basis_degree_for, candidate_numeigs, plan_numeig
 from ..sphere.random import random_centred_coefficients
 from ..targets import blob_factor, parse_target
 
@@ -27,8 +25,9 @@ def register(subparsers) -> None:
         "whose noise gain times --noise is below --accuracy.")
     p.add_argument("--lmax-factor", type=int, required=True, help="degree La of rho")
     p.add_argument("--numeig", default=None,
-                   help="K values, comma-separated (default: (La+2)^2 and 1.5, 2, 3, 4 times (La+1)^2)")
-    p.add_argument("--lmax", type=int, default=None, help="basis band limit Lb (default: enough for the largest K)")
+                   help="K values, comma-separated (default: (La+2)^2 and 1.25, 1.5, ..., 4 times (La+1)^2)")
+    p.add_argument("--lmax", type=int, default=None,
+                   help="basis band limit Lb (default: (Lb+1)^2 >= 1.5 K for the largest K)")
     p.add_argument("--target", default="blob",
                    help="reference rho: blob | random:SEED | star:l,m,p | mesh:PATH (the harmonic truth)")
     p.add_argument("--noise", type=float, default=1e-8, help="relative noise sigma on the eigenvalues")
@@ -37,10 +36,9 @@ def register(subparsers) -> None:
     p.set_defaults(func=_identifiability)
 
 
-def _ks(text, la: int) -> list[int]:
+def _ks(text, la: int) -> list[int] | None:
     if text is None:
-        n = (la + 1) ** 2
-        return sorted({(la + 2) ** 2, int(1.5 * n), 2 * n, 3 * n, 4 * n})
+        return None
     try:
         ks = sorted({int(v) for v in text.split(",")})
     except ValueError:
@@ -62,39 +60,32 @@ def _reference(text: str, la: int, lb: int) -> np.ndarray:
     target = parse_target(text, lmax=lb, numeig=2, lmax_factor=la)
     if target.truth is None:
         raise InvalidArgumentError(f"{text} has no known rho; use blob, random:SEED, star:... or mesh:...")
-    return target.truth.truncated(la).coefficients if target.truth.lmax >= la else \
-        np.concatenate([target.truth.coefficients, np.zeros((la + 1) ** 2 - target.truth.coefficients.size)])
+    return target.truth.coefficients
 
 
 def _identifiability(args) -> int:
     la = args.lmax_factor
     ks = _ks(args.numeig, la)
-    noise = check_float(args.noise, "--noise", positive=True)
-    accuracy = check_float(args.accuracy, "--accuracy", positive=True)
-    # (Lb+1)² basis functions for the largest K, with a margin of 1.5 in count so the top eigenvalues converged
-    lb = args.lmax if args.lmax is not None else max(int(np.ceil(np.sqrt(1.5 * ks[-1]))), la)
-    model = HarmonicModel(lb, la)
-    a = _reference(args.target, la, lb)
-    rows = []
-    for k in ks:
-        ident = identifiability(model, a, k)
-        rows.append({"numeig": k, **{key: v for key, v in ident.to_dict().items() if key != "singular_values"}})
-    good = [r["numeig"] for r in rows if not r["underdetermined"] and r["noise_gain"] * noise <= accuracy]
-    recommended = good[0] if good else None
+    lb_ref = args.lmax if args.lmax is not None else basis_degree_for(max(ks or candidate_numeigs(la)), la)
+    plan = plan_numeig(la, _reference(args.target, la, lb_ref), candidates=ks, noise=args.noise,
+                       accuracy=args.accuracy, lmax=args.lmax)
+    rows = [{k: v for k, v in r.to_dict().items() if k != "singular_values"} for r in plan.rows]
     if args.json:
-        print(json.dumps({"lmax": lb, "lmax_factor": la, "target": args.target, "noise": noise,
-                          "accuracy": accuracy, "rows": rows, "recommended_numeig": recommended}))
+        print(json.dumps({"lmax": lb_ref, "lmax_factor": la, "target": args.target, "noise": plan.noise,
+                          "accuracy": plan.accuracy, "rows": rows, "recommended_numeig": plan.numeig,
+                          "recommended_lmax": plan.lmax if plan.numeig is not None else None}))
         return 0
     print(f"rho: {args.target}, La = {la} ({rows[0]['free']} free coefficients, {rows[0]['symmetries']} rotations "
-          f"counted out), basis Lb = {lb}")
+          f"counted out), basis Lb = {lb_ref}")
     print(f"{'K':>6} {'rank':>6} {'condition':>11} {'noise gain':>11}  determined")
     for r in rows:
         cond = "inf" if r["condition"] is None else f"{r['condition']:.3g}"
         print(f"{r['numeig']:>6} {r['rank']:>6} {cond:>11} {r['noise_gain']:>11.3g}  "
               f"{'no' if r['underdetermined'] else 'yes'}")
-    if recommended is None:
-        print(f"no K listed reaches a relative accuracy {accuracy:g} with noise {noise:g}; try larger K")
+    if plan.numeig is None:
+        print(f"no K listed reaches a relative accuracy {plan.accuracy:g} with noise {plan.noise:g}; try larger K")
     else:
-        print(f"recommended: K = {recommended} (noise gain x noise = "
-              f"{rows[ks.index(recommended)]['noise_gain'] * noise:.2g} <= {accuracy:g})")
+        gain = next(r["noise_gain"] for r in rows if r["numeig"] == plan.numeig)
+        print(f"recommended: K = {plan.numeig} with basis Lb = {plan.lmax} (noise gain x noise = "
+              f"{gain * plan.noise:.2g} <= {plan.accuracy:g})")
     return 0

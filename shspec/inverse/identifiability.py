@@ -28,7 +28,7 @@ from ..checks import check_float, check_int
 from ..errors import InvalidArgumentError
 from ..model import SpectralModel
 
-__all__ = ["Identifiability", "identifiability", "determined_directions"]
+__all__ = ["Identifiability", "identifiability", "identifiability_by_numeig", "determined_directions"]
 
 
 @dataclass(frozen=True)
@@ -123,8 +123,40 @@ def identifiability(model: SpectralModel, params, numeig: int, *, fit_area: bool
         For a model that is not a SpectralModel, parameters of the wrong shape, or bad K.
     """
     p, numeig, rank_tol, spec = _checked(model, params, numeig, rank_tol)
+    if residuals is not None:
+        residuals = np.asarray(residuals, dtype=float)
+        if residuals.shape != (numeig,):
+            raise InvalidArgumentError(f"residuals must have shape ({numeig},), got {residuals.shape}")
+    return _analyse(model, p, spec, (numeig,), fit_area, rank_tol, residuals)[0]
+
+
+def identifiability_by_numeig(model: SpectralModel, params, numeigs, *, fit_area: bool = False,
+                              rank_tol: float = 1e-12) -> list[Identifiability]:
+    """:func:`identifiability` for several K from one spectrum of max(numeigs) eigenpairs (the Jacobian's first
+    K rows are those of K eigenvalues).
+
+    Parameters
+    ----------
+    model, params, fit_area, rank_tol
+        As in :func:`identifiability`.
+    numeigs : sequence of int
+        The K values, each ≥ 2.
+
+    Returns
+    -------
+    list of Identifiability
+        One per K, in the order given.
+    """
+    ks = [check_int(k, "numeig", minimum=2) for k in numeigs]
+    if not ks:
+        raise InvalidArgumentError("numeigs must name at least one K")
+    p, _, rank_tol, spec = _checked(model, params, max(ks), rank_tol)
+    return _analyse(model, p, spec, ks, fit_area, rank_tol, None)
+
+
+def _analyse(model, p, spec, ks, fit_area, rank_tol, residuals) -> list[Identifiability]:
     free = model.free_parameters(fit_area)
-    jac = (model.jacobian(spec)[1:] / spec.eigenvalues[1:, None])[:, free]
+    jac_all = (model.jacobian(spec)[1:] / spec.eigenvalues[1:, None])[:, free]
     sym = model.symmetry_directions(p)[free]
     basis = np.eye(free.size)
     nsym = 0
@@ -132,24 +164,21 @@ def identifiability(model: SpectralModel, params, numeig: int, *, fit_area: bool
         q, sv, _ = scipy.linalg.svd(sym, full_matrices=True)
         nsym = int(np.sum(sv > 1e-10 * max(sv[0], 1e-300)))
         basis = q[:, nsym:]  # orthonormal complement of the symmetry directions
-    jc = jac @ basis
-    u, s, vt = np.linalg.svd(jc, full_matrices=False)
     d = basis.shape[1]
-    rank = int(np.sum(s > rank_tol * s[0])) if s.size and s[0] > 0 else 0
-    under = rank < d
-    condition = float(s[0] / s[rank - 1]) if not under else float("inf")
-    pinv = (vt[:rank].T / s[:rank]) @ u[:, :rank].T
     norm = np.linalg.norm(p)
-    estimated = None
-    if residuals is not None:
-        r = np.asarray(residuals, dtype=float)
-        if r.shape != (numeig,):
-            raise InvalidArgumentError(f"residuals must have shape ({numeig},), got {r.shape}")
-        estimated = float(np.linalg.norm(pinv @ r[1:]) / norm)
-    return Identifiability(numeig=numeig, free=int(free.size), symmetries=nsym, directions=d, rank=rank,
-                           condition=condition, estimated_error=estimated,
-                           noise_gain=float(np.linalg.norm(pinv) / norm), singular_values=s,
-                           underdetermined=under)
+    out = []
+    for numeig in ks:
+        u, s, vt = np.linalg.svd(jac_all[:numeig - 1] @ basis, full_matrices=False)
+        rank = int(np.sum(s > rank_tol * s[0])) if s.size and s[0] > 0 else 0
+        under = rank < d
+        condition = float(s[0] / s[rank - 1]) if not under else float("inf")
+        pinv = (vt[:rank].T / s[:rank]) @ u[:, :rank].T
+        estimated = None if residuals is None else float(np.linalg.norm(pinv @ residuals[1:]) / norm)
+        out.append(Identifiability(numeig=numeig, free=int(free.size), symmetries=nsym, directions=d, rank=rank,
+                                   condition=condition, estimated_error=estimated,
+                                   noise_gain=float(np.linalg.norm(pinv) / norm), singular_values=s,
+                                   underdetermined=under))
+    return out
 
 
 def determined_directions(model: SpectralModel, params, numeig: int, *, rank_tol: float = 1e-6) -> np.ndarray:
