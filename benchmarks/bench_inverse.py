@@ -34,6 +34,7 @@ import numpy as np  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 from shspec import HarmonicModel, __version__  # noqa: E402
+from shspec.parallel import make_executor  # noqa: E402
 from shspec.inverse import (FitOptions, align, blob_factor, fit, harmonic_target, mesh_target,  # noqa: E402
                             degree_ramp, numeig_ramp)
 from shspec.sphere.random import random_centred_coefficients  # noqa: E402
@@ -64,7 +65,8 @@ def _summary(result, truth=None):
     return out
 
 
-_SECTIONS = ("blob", "blob_hops", "optimizers", "study", "bunny", "mesh_log", "mesh_all")
+_SECTIONS = ("blob", "blob_hops", "optimizers", "study", "goal_degree10", "goal_blob", "bunny", "mesh_log",
+             "mesh_all")
 
 
 def _save(report):
@@ -119,16 +121,58 @@ def bench_optimizers(report, budget):
         _save(report)
 
 
-def bench_study(report, max_iter):
+def _goal_summary(result, truth, options_text):
+    """_summary plus, per start, its error after alignment and its linearized estimate (identifiability)."""
+    out = _summary(result, truth)
+    out["options"] = options_text
+    for row, start in zip(out["per_start"], result.starts):
+        al = align(result.model.to_factor(start.params), truth)
+        row["rho_error_after_alignment"] = al.relative_error
+    ident = result.identifiability()
+    out["identifiability"] = {k: v for k, v in ident.to_dict().items() if k != "singular_values"}
+    out["success_1e-8"] = sum(r["rho_error_after_alignment"] <= 1e-8 for r in out["per_start"])
+    return out
+
+
+def bench_study(report, starts, workers):
+    """The study's harmonic setting: Lb = 30, La = 15, K = 256, R = 0 and 1e-6, the default schedule."""
     truth = blob_factor(15)
     target = harmonic_target(truth, 30, 256)
     model = HarmonicModel(30, 15)
-    section = {"setting": "Lb=30, La=15 (256 coefficients), 256 eigenvalues, target: the blob, one start"}
+    section = {"setting": "Lb=30, La=15 (256 coefficients), 256 eigenvalues, target: the blob, default options"}
     for reg in (0.0, 1e-6):
-        result = fit(target, model, FitOptions(schedule=(), basin_hops=0, starts=1, reg=reg, max_iter=max_iter))
-        section[f"R={reg:g}"] = _summary(result, truth)
+        with make_executor(workers) as ex:
+            result = fit(target, model, FitOptions(starts=starts, reg=reg), executor=ex)
+        section[f"R={reg:g}"] = _goal_summary(result, truth, f"FitOptions(starts={starts}, reg={reg:g})")
         report["study"] = section
         _save(report)
+
+
+def bench_goal_degree10(report, starts, workers):
+    """Issue 14's first goal: a random centred rho of degree 10, 300 eigenvalues, Lb = 24, default options."""
+    truth = random_centred_coefficients(1, 10, 0.2)
+    target = harmonic_target(truth, 24, 300)
+    with make_executor(workers) as ex:
+        result = fit(target, HarmonicModel(24, 10), FitOptions(starts=starts), executor=ex)
+    report["goal_degree10"] = {"setting": "random centred rho (seed 1, degree 10), Lb=24, 300 eigenvalues",
+                               **_goal_summary(result, truth, f"FitOptions(starts={starts})")}
+    _save(report)
+
+
+def bench_goal_blob(report, starts, workers):
+    """Issue 14's second goal: the blob at La = 15 with the K that ``shspec identifiability`` recommends."""
+    from shspec.galerkin.planning import plan_numeig
+
+    la = 15
+    truth = blob_factor(la)
+    plan = plan_numeig(la, truth, noise=FitOptions().residual_tol, accuracy=1e-8)
+    k, lb = (plan.numeig, plan.lmax) if plan.numeig is not None else (600, 30)
+    target = harmonic_target(truth, lb, k)
+    with make_executor(workers) as ex:
+        result = fit(target, HarmonicModel(lb, la), FitOptions(starts=starts), executor=ex)
+    report["goal_blob"] = {"setting": f"the blob at La=15, K={k}, Lb={lb}", "plan": plan.to_dict(),
+                           **_goal_summary(result, truth, f"FitOptions(starts={starts})")}
+    _save(report)
 
 
 def bench_bunny(report, max_iter, numeig):
@@ -277,7 +321,9 @@ def bench_mesh_all(report, quick):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer starts and iterations")
-    parser.add_argument("--sections", default="blob,optimizers,study,bunny")
+    parser.add_argument("--sections", default="blob,optimizers,study,goal_degree10,goal_blob,bunny")
+    parser.add_argument("--workers", type=int, default=1,
+                        help="processes for the starts of the goal sections (one BLAS thread each)")
     args = parser.parse_args(argv)
     FIGURES.mkdir(parents=True, exist_ok=True)
     report = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "python": sys.version.split()[0],
@@ -298,7 +344,11 @@ def main(argv=None):
         if "optimizers" in sections:
             bench_optimizers(report, 200 if args.quick else 1000)
         if "study" in sections:
-            bench_study(report, 20 if args.quick else 60)
+            bench_study(report, 1 if args.quick else 2, args.workers)
+        if "goal_degree10" in sections:
+            bench_goal_degree10(report, 2 if args.quick else 4, args.workers)
+        if "goal_blob" in sections:
+            bench_goal_blob(report, 2 if args.quick else 4, args.workers)
         if "bunny" in sections:
             bench_bunny(report, 15 if args.quick else 40, 60 if args.quick else 100)
         if "mesh_log" in sections:

@@ -410,3 +410,20 @@ def test_geodesic_acceleration_shortens_the_crawl_of_lm():
     assert fast.size <= 0.6 * plain.size
     with pytest.raises(InvalidArgumentError):
         FitOptions(lm_acceleration="yes")
+
+
+def test_cli_fit_without_numeig_plans_k_and_lmax(tmp_path, capsys):
+    """No --numeig: the fit takes the planned K and Lb, says so and writes the plan to summary.json."""
+    from shspec.galerkin.planning import plan_numeig
+
+    truth = random_centred_coefficients(4, 3, 0.2)
+    spectrum_file = tmp_path / "spectrum.txt"
+    np.savetxt(spectrum_file, HarmonicModel(10, 3).spectrum(truth, 60).eigenvalues)
+    out = tmp_path / "fit"
+    assert main(["fit", "--target", f"spectrum:{spectrum_file}", "--lmax-factor", "3", "--starts", "1",
+                 "--max-iter", "3", "--basin-hops", "0", "--schedule", "none", "--out", str(out)]) == 0
+    assert "--numeig not given: K = " in capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    plan = plan_numeig(3, random_centred_coefficients(0, 3, 0.2), noise=1e-13, accuracy=1e-8)
+    assert summary["numeig_plan"]["numeig"] == plan.numeig == summary["numeig"]
+    assert summary["numeig_plan"]["lmax"] == plan.lmax

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import InvalidArgumentError, OutputError
 from ..galerkin import HarmonicModel
+from ..galerkin.planning import plan_numeig
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions, parse_schedule
 from ..inverse.schedule import degree_ramp, numeig_ramp
@@ -27,6 +28,7 @@ from ..pipeline.adaptive import AdaptiveOptions, adaptive_fit
 from ..parallel import make_executor
 from ..spectral.topology import check_genus_zero
 from ..sphere.harmonics import as_coefficients
+from ..sphere.random import random_centred_coefficients
 
 
 def _harmonic(args, target: Target) -> HarmonicModel:
@@ -76,6 +78,9 @@ def read_initial(path: Path, model) -> np.ndarray:
     return value
 
 
+#: Relative L2 accuracy of rho that the planned K (no --numeig) gives a fit reaching its residual_tol.
+PLANNED_ACCURACY = 1e-8
+
 #: The discretizations ``--model`` chooses from: name -> builder(args, target).
 MODELS = {"harmonic": _harmonic, "mesh": _mesh}
 
@@ -93,10 +98,15 @@ def register(subparsers) -> None:
     p.add_argument("--target", required=True,
                    help="blob | star:l,m,p | mesh:PATH | spectrum:FILE (text with one eigenvalue per line, or the "
                    "last column of 'shspec mesh-spectrum' output; .npy; .json)")
-    p.add_argument("--lmax", type=int, default=30, help="basis band limit Lb")
+    p.add_argument("--lmax", type=int, default=None,
+                   help="basis band limit Lb (default: with --numeig, 30; without, the planned Lb, (Lb+1)^2 >= 1.5 K)")
     p.add_argument("--lmax-factor", type=int, default=15, help="factor band limit La")
-    p.add_argument("--numeig", type=_numeig, default=256,
-                   help="eigenvalues matched, lambda_0 = 0 included (a spectrum: file's first NUMEIG; all if fewer); "
+    p.add_argument("--numeig", type=_numeig, default=None,
+                   help="eigenvalues matched, lambda_0 = 0 included (a spectrum: file's first NUMEIG; all if fewer). "
+                   "Default for harmonic fits: planned, the smallest K of shspec identifiability's candidates that "
+                   "determines a random reference rho of degree La to 1e-8 from eigenvalues fitted to 1e-13 (noise "
+                   "gain <= 1e5; the blob at La = 15: 704), capped by a spectrum file's length; it is printed and "
+                   "written to summary.json. For mesh fits 256. "
                    "'auto' for mesh targets: those whose estimated discretization error (against one 4-to-1 "
                    "subdivision of the mesh) is at most --numeig-tol, of at most min(n/4, 300); 'all' for mesh "
                    "targets: n - 1, every eigenvalue of the n-vertex mesh (on bunny_600, R = 0.05, all 599 gave "
@@ -215,6 +225,26 @@ def _auto_cap(args) -> int:
     return max(2, min(_mesh_size(args) // 4, 300))
 
 
+def _plan(args) -> dict | None:
+    """Fill in --numeig and --lmax where the user gave none (see --numeig); the plan's report, or None."""
+    if args.numeig is not None:
+        args.lmax = 30 if args.lmax is None else args.lmax
+        return None
+    if args.model != "harmonic":
+        args.numeig, args.lmax = 256, 30 if args.lmax is None else args.lmax
+        return None
+    plan = plan_numeig(args.lmax_factor, random_centred_coefficients(args.seed, args.lmax_factor, 0.2),
+                       noise=FitOptions().residual_tol, accuracy=PLANNED_ACCURACY)
+    if plan.numeig is None:
+        raise InvalidArgumentError(plan.statement() + "; give --numeig")
+    args.numeig = plan.numeig
+    args.lmax = plan.lmax if args.lmax is None else args.lmax
+    if not args.quiet:
+        print(f"--numeig not given: {plan.statement()}", file=sys.stderr)
+    return {"numeig": plan.numeig, "lmax": args.lmax, **{k: v for k, v in plan.to_dict().items()
+                                                         if k not in ("numeig", "lmax")}}
+
+
 def _fit(args) -> int:
     out: Path = args.out
     if out.exists() and not out.is_dir():
@@ -222,6 +252,10 @@ def _fit(args) -> int:
     auto = args.numeig == "auto"
     if args.numeig in ("auto", "all") and args.target.partition(":")[0] not in ("star", "mesh"):
         raise InvalidArgumentError(f"--numeig {args.numeig} needs a mesh target (star:... or mesh:...)")
+    extra = {}
+    planned = _plan(args)
+    if planned is not None:
+        extra["numeig_plan"] = planned
     numeig = args.numeig
     if auto:
         numeig = _auto_cap(args)
@@ -229,7 +263,9 @@ def _fit(args) -> int:
         numeig = _mesh_size(args) - 1
     target = parse_target(args.target, lmax=args.lmax, numeig=numeig, lmax_factor=args.lmax_factor,
                           source=args.source, subdivisions=args.subdivisions)
-    extra = {}
+    if planned is not None and target.numeig < planned["numeig"]:
+        print(f"warning: the target has only {target.numeig} eigenvalues; the plan asked for {planned['numeig']}",
+              file=sys.stderr)
     if auto:
         target, extra["numeig_auto"] = _auto_numeig(args, target)
     if not args.allow_any_genus and args.target.partition(":")[0] in ("spectrum", "mesh"):

@@ -5,8 +5,10 @@ relative Jacobian of the first K eigenvalues is analysed for a list of candidate
 (:func:`~shspec.inverse.identifiability.identifiability_by_numeig`, one spectrum for all of them), and the smallest K
 whose noise gain g satisfies g·σ ≤ accuracy is recommended: σ is the relative error on the eigenvalues (noise of a
 measured spectrum, or the residual a fit ends at) and accuracy the wanted relative L2 error of ρ.  The defaults
-σ = 1e-8, accuracy = 1e-6 ask for g ≤ 100.  For the blob at La = 15: g ≈ 2e5 at the study's K = 256, and the
-recommendation is K = 576 (docs and benchmarks/results/bench_inverse.json, goal_blob).
+σ = 1e-8, accuracy = 1e-6 ask for g ≤ 100 (``shspec identifiability``); ``shspec fit`` without ``--numeig`` asks
+for ρ to 1e-8 from a fit that reaches its ``residual_tol`` (1e-13), g ≤ 1e5.  For the blob at La = 15 (Lb 38,
+measured): g = 1.8e6 at K = 289, 1.4e5 at 576, 9.5e4 at 704, 3.9e3 at 1024, so the fit's rule picks K = 704 and
+the stricter default of ``shspec identifiability`` none up to 4·(La + 1)².
 
 The basis band limit Lb is chosen so that (Lb + 1)² ≥ 1.5 K: a margin of half again as many basis functions as
 eigenvalues, with which the K-th eigenvalue of the fits here had converged (issue 12's truncation estimate).
