@@ -65,8 +65,8 @@ def _summary(result, truth=None):
     return out
 
 
-_SECTIONS = ("blob", "blob_hops", "optimizers", "study", "goal_degree10", "goal_blob", "bunny", "mesh_log",
-             "mesh_all")
+_SECTIONS = ("blob", "blob_hops", "optimizers", "study", "goal_degree10", "goal_blob", "success_by_degree", "bunny",
+             "mesh_log", "mesh_all")
 
 
 def _save(report):
@@ -157,6 +157,25 @@ def bench_goal_degree10(report, starts, workers):
     report["goal_degree10"] = {"setting": "random centred rho (seed 1, degree 10), Lb=24, 300 eigenvalues",
                                **_goal_summary(result, truth, f"FitOptions(starts={starts})")}
     _save(report)
+
+
+def bench_success_by_degree(report, starts, workers, degrees=(6, 8, 12)):
+    """Success rates of the default fit on random centred rho (seed 1) of several degrees, each at the K and Lb that
+    ``shspec fit`` plans without --numeig (degree 10 and the blob at 15 are the goal sections)."""
+    from shspec.galerkin.planning import plan_numeig
+
+    section = {}
+    for la in degrees:
+        truth = random_centred_coefficients(1, la, 0.2)
+        plan = plan_numeig(la, random_centred_coefficients(0, la, 0.2), noise=FitOptions().residual_tol,
+                           accuracy=1e-8)
+        target = harmonic_target(truth, plan.lmax, plan.numeig)
+        with make_executor(workers) as ex:
+            result = fit(target, HarmonicModel(plan.lmax, la), FitOptions(starts=starts), executor=ex)
+        section[f"degree {la}"] = {"setting": f"random centred rho (seed 1, degree {la}), planned K={plan.numeig}, "
+                                              f"Lb={plan.lmax}", **_goal_summary(result, truth, f"FitOptions(starts={starts})")}
+        report["success_by_degree"] = section
+        _save(report)
 
 
 def bench_goal_blob(report, starts, workers):
@@ -349,6 +368,8 @@ def main(argv=None):
             bench_goal_degree10(report, 2 if args.quick else 4, args.workers)
         if "goal_blob" in sections:
             bench_goal_blob(report, 2 if args.quick else 4, args.workers)
+        if "success_by_degree" in sections:
+            bench_success_by_degree(report, 2 if args.quick else 4, args.workers)
         if "bunny" in sections:
             bench_bunny(report, 15 if args.quick else 40, 60 if args.quick else 100)
         if "mesh_log" in sections:

@@ -46,5 +46,7 @@ def nielsen_update(mu: float, nu: float, gain: float, *, floor: float = 0.0,
     if not nu >= 1:
         raise InvalidArgumentError(f"the growth factor nu must be >= 1, got {nu!r}")
     if gain > 0:
-        return max(floor, mu * max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)), 2.0
+        # ϱ ≥ 1 gives the factor 1/3 already; the clip keeps the cube finite for the huge ϱ of an accelerated step
+        # whose predicted decrease is tiny
+        return max(floor, mu * max(1.0 / 3.0, 1.0 - (2.0 * min(gain, 1.0) - 1.0) ** 3)), 2.0
     return min(ceiling, mu * nu), 2.0 * nu

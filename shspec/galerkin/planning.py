@@ -7,8 +7,10 @@ whose noise gain g satisfies g·σ ≤ accuracy is recommended: σ is the relati
 measured spectrum, or the residual a fit ends at) and accuracy the wanted relative L2 error of ρ.  The defaults
 σ = 1e-8, accuracy = 1e-6 ask for g ≤ 100 (``shspec identifiability``); ``shspec fit`` without ``--numeig`` asks
 for ρ to 1e-8 from a fit that reaches its ``residual_tol`` (1e-13), g ≤ 1e5.  For the blob at La = 15 (Lb 38,
-measured): g = 1.8e6 at K = 289, 1.4e5 at 576, 9.5e4 at 704, 3.9e3 at 1024, so the fit's rule picks K = 704 and
-the stricter default of ``shspec identifiability`` none up to 4·(La + 1)².
+measured): g = 1.8e6 at K = 289, 1.4e5 at 576, 9.5e4 at 704, 3.9e3 at 1024, so the fit's rule picks K = 704 for it and
+the stricter default of ``shspec identifiability`` none up to 4·(La + 1)².  A random reference of degree 15 is much
+better determined (g = 630 at K = 289): at a ρ whose high degrees are zero, high-degree changes move the low
+eigenvalues only weakly.
 
 The basis band limit Lb is chosen so that (Lb + 1)² ≥ 1.5 K: a margin of half again as many basis functions as
 eigenvalues, with which the K-th eigenvalue of the fits here had converged (issue 12's truncation estimate).
