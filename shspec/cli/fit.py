@@ -20,7 +20,7 @@ from ..galerkin.planning import plan_numeig
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions, parse_schedule
 from ..inverse.schedule import degree_ramp, numeig_ramp
-from ..targets import TARGET_SOURCES, Target, parse_target
+from ..targets import TARGET_SOURCES, Target, parse_target, read_spectrum
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.io import load_mesh
 from ..mesh.refine import eigenvalue_errors, trusted_numeig
@@ -269,8 +269,10 @@ def _fit(args) -> int:
               file=sys.stderr)
     if auto:
         target, extra["numeig_auto"] = _auto_numeig(args, target)
-    if not args.allow_any_genus and args.target.partition(":")[0] in ("spectrum", "mesh"):
-        check_genus_zero(target.eigenvalues, area=target.area)
+    scheme, _, where = args.target.partition(":")
+    if not args.allow_any_genus and scheme in ("spectrum", "mesh"):
+        # the whole file, not only the K fitted: the heat trace needs many eigenvalues to be confident
+        check_genus_zero(read_spectrum(where) if scheme == "spectrum" else target.eigenvalues, area=target.area)
     model = MODELS[args.model](args, target)
     if not args.log_factors and args.adaptive:
         raise InvalidArgumentError("--adaptive fits log factors (refinement follows log c); drop --no-log-factors")
