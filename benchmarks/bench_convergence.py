@@ -25,6 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import load_average, machine_info, threads, write_json  # noqa: E402
 
 from shspec import HarmonicModel  # noqa: E402
+from shspec.errors import NotPositiveError  # noqa: E402
 from shspec.inverse import FitOptions, blob_factor, harmonic_target  # noqa: E402
 from shspec.inverse.energy import Objective, eigenvalue_weights  # noqa: E402
 from shspec.inverse.optimize import make_optimizer  # noqa: E402
@@ -65,8 +66,14 @@ def _shspec(obj, x0, iterations, acceleration):
 def _scipy(obj, x0, evaluations):
     t0, trace = time.perf_counter(), []
 
+    size = obj.evaluate(x0).residuals.size
+
     def fun(x):
-        ev = obj.evaluate(x)
+        try:
+            ev = obj.evaluate(x)
+        except NotPositiveError:
+            # scipy needs finite residuals: a point that is not a metric gets a huge one, so the step is rejected
+            return np.full(size, 1e6)
         trace.append([len(trace) + 1, ev.relative_residual, round(time.perf_counter() - t0, 3)])
         return ev.residuals
 
