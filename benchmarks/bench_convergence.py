@@ -12,7 +12,6 @@ with the elapsed time.  One BLAS/numba thread; the load average is recorded.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -22,7 +21,7 @@ import scipy.optimize
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import load_average, machine_info, threads, write_json  # noqa: E402
+from common import load_average, machine_info, main_with_only, threads  # noqa: E402
 
 from shspec import HarmonicModel  # noqa: E402
 from shspec.errors import NotPositiveError  # noqa: E402
@@ -109,7 +108,4 @@ def run(only: str | None) -> dict:
 
 
 if __name__ == "__main__":
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--only", help="run only the cases whose name contains this text")
-    a = p.parse_args()
-    print(write_json("bench_convergence.json", run(a.only)))
+    main_with_only(__doc__, "bench_convergence.json", run)

@@ -17,14 +17,13 @@ recorded.  The load average is recorded; times are per start, on one core.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import load_average, machine_info, threads, write_json  # noqa: E402
+from common import load_average, machine_info, main_with_only, threads  # noqa: E402
 
 from shspec import HarmonicModel  # noqa: E402
 from shspec.inverse import FitOptions, Stage, align, fit, harmonic_target  # noqa: E402
@@ -68,7 +67,4 @@ def run(only: str | None) -> dict:
 
 
 if __name__ == "__main__":
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--only", help="run only the cases whose name contains this text")
-    a = p.parse_args()
-    print(write_json("bench_global_search.json", run(a.only)))
+    main_with_only(__doc__, "bench_global_search.json", run)

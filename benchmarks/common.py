@@ -230,3 +230,13 @@ def write_json(name: str, data: dict) -> Path:
     path = RESULTS / name
     path.write_text(json.dumps(_jsonable(data), indent=1) + "\n")
     return path
+
+
+def main_with_only(doc: str, name: str, run) -> None:
+    """The command line of a benchmark of named cases: ``--only TEXT`` runs the cases whose name contains TEXT;
+    ``run(only)`` returns the JSON written to ``results/name``."""
+    import argparse
+
+    p = argparse.ArgumentParser(description=doc.splitlines()[0])
+    p.add_argument("--only", help="run only the cases whose name contains this text")
+    print(write_json(name, run(p.parse_args().only)))
