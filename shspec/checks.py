@@ -6,7 +6,7 @@ import numpy as np
 
 from .errors import InvalidArgumentError
 
-__all__ = ["check_int", "check_float"]
+__all__ = ["check_int", "check_float", "check_options"]
 
 
 def check_int(value, name: str, *, minimum: int | None = 0, maximum: int | None = None,
@@ -49,3 +49,17 @@ def check_float(value, name: str, *, minimum: float | None = None, positive: boo
     if minimum is not None and value < minimum:
         raise InvalidArgumentError(f"{name} must be >= {minimum:g}, got {value}")
     return value
+
+
+def check_options(options, cls: type):
+    """``options``, or ``cls()`` when it is None, after checking that it is an instance of the options class ``cls``.
+
+    Raises
+    ------
+    InvalidArgumentError
+        Naming the class expected and the type given.
+    """
+    opt = options if options is not None else cls()
+    if not isinstance(opt, cls):
+        raise InvalidArgumentError(f"options must be {cls.__name__}, got {type(opt).__name__}")
+    return opt

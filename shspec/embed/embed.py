@@ -76,6 +76,7 @@ import time
 
 import numpy as np
 
+from ..checks import check_options
 from ..errors import InvalidArgumentError
 from ..mesh.cotan import vertex_areas
 from ..mesh.triangle_mesh import TriangleMesh
@@ -116,9 +117,7 @@ def embed(sphere: TriangleMesh, factors, options: EmbedOptions | None = None) ->
     InvalidArgumentError
         Factors whose ratio max/min overflows (> 1e308).
     """
-    opt = options if options is not None else EmbedOptions()
-    if not isinstance(opt, EmbedOptions):
-        raise InvalidArgumentError(f"options must be EmbedOptions, got {type(opt).__name__}")
+    opt = check_options(options, EmbedOptions)
     sphere = check_sphere(sphere)
     c = vertex_factors(sphere, factors)
     start, cpu = time.perf_counter(), time.process_time()

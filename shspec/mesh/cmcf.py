@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ..checks import check_int
+from ..checks import check_int, check_options
 from ..errors import InvalidArgumentError
 from .cotan import cotan_stiffness, vertex_areas
 from .mobius import center_mesh
@@ -213,9 +213,7 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
     ConvergenceError
         If Möbius centering fails (the flow itself reports failure through ``success``).
     """
-    opt = options if options is not None else CMCFOptions()
-    if not isinstance(opt, CMCFOptions):
-        raise InvalidArgumentError(f"options must be CMCFOptions, got {type(opt).__name__}")
+    opt = check_options(options, CMCFOptions)
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
     if opt.validate:

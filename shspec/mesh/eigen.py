@@ -41,7 +41,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ..checks import check_int
+from ..checks import check_int, check_options
 from ..errors import ConvergenceError, InvalidArgumentError, MeshError
 from ..model import Spectrum
 from .cotan import cotan_stiffness, mass_matrix
@@ -197,9 +197,7 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
         If the Krylov basis reaches ``max_dim`` before k + 1 pairs converge.
     """
     n, k = _check_pencil(L, M, k)
-    opt = options if options is not None else EigenOptions()
-    if not isinstance(opt, EigenOptions):
-        raise InvalidArgumentError(f"options must be EigenOptions, got {type(opt).__name__}")
+    opt = check_options(options, EigenOptions)
     L = sp.csr_matrix(L, dtype=float)
     M = sp.csr_matrix(M, dtype=float)
     if n < opt.dense_below or k + 2 >= n // 2:

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..checks import check_int
+from ..checks import check_int, check_options
 from ..errors import InvalidArgumentError
 from ..inverse.multistart import fit
 from ..inverse.options import FitOptions, FitResult
@@ -123,9 +123,7 @@ def adaptive_fit(target: Target, options: AdaptiveOptions | None = None, *, log=
     -------
     AdaptiveResult
     """
-    opt = options if options is not None else AdaptiveOptions()
-    if not isinstance(opt, AdaptiveOptions):
-        raise InvalidArgumentError(f"options must be AdaptiveOptions, got {type(opt).__name__}")
+    opt = check_options(options, AdaptiveOptions)
     if not isinstance(target, Target):
         raise InvalidArgumentError(f"target must be a Target, got {type(target).__name__}")
     say = log if log is not None else (lambda _msg: None)

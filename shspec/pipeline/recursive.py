@@ -29,7 +29,7 @@ import numpy as np
 
 from ..embed.distances import surface_distance
 from ..embed.embed import EmbedOptions, EmbedResult, embed
-from ..checks import check_int
+from ..checks import check_int, check_options
 from ..mesh.cotan import vertex_areas
 from ..errors import InvalidArgumentError
 from ..inverse import FitOptions, Target, fit
@@ -155,9 +155,7 @@ def recursive_fit(target, sphere: TriangleMesh | None = None, options: Recursive
     InvalidArgumentError
         No sphere given and the target has none; wrong types.
     """
-    opt = options if options is not None else RecursiveOptions()
-    if not isinstance(opt, RecursiveOptions):
-        raise InvalidArgumentError(f"options must be RecursiveOptions, got {type(opt).__name__}")
+    opt = check_options(options, RecursiveOptions)
     if not isinstance(target, Target):
         raise InvalidArgumentError(f"target must be a Target, got {type(target).__name__}")
     sphere = sphere if sphere is not None else target.sphere

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import check_int
+from ..checks import check_int, check_options
 from ..embed.ambiguity import AmbiguityReport, detect_ambiguity
 from ..embed.render import render_mesh
 from ..embed.distances import SurfaceDistance, surface_distance
@@ -163,9 +163,7 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
     MeshError
         If the target is not a closed manifold genus-0 mesh.
     """
-    opt = options if options is not None else ValidationOptions()
-    if not isinstance(opt, ValidationOptions):
-        raise InvalidArgumentError(f"options must be ValidationOptions, got {type(opt).__name__}")
+    opt = check_options(options, ValidationOptions)
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
     say = log if log is not None else (lambda _msg: None)

@@ -43,7 +43,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ..checks import check_int
+from ..checks import check_int, check_options
 from ..errors import InvalidArgumentError, TopologyError
 from .heat import as_eigenvalues, heat_trace, spectral_tail
 from .weyl import top_density, weyl_fit
@@ -277,9 +277,7 @@ def estimate_topology(eigenvalues, area: float | None = None, *, numeig: int | N
         If the spectrum is not a closed surface's (see :func:`~shspec.spectral.heat.as_eigenvalues`), shorter
         than :data:`MIN_EIGENVALUES`, or an argument is out of range.
     """
-    opt = options if options is not None else TopologyOptions()
-    if not isinstance(opt, TopologyOptions):
-        raise InvalidArgumentError(f"options must be TopologyOptions, got {type(opt).__name__}")
+    opt = check_options(options, TopologyOptions)
     lam = as_eigenvalues(eigenvalues, minimum=MIN_EIGENVALUES)
     if numeig is not None:
         lam = lam[:check_int(numeig, "numeig", minimum=MIN_EIGENVALUES, maximum=lam.size)]
