@@ -194,14 +194,13 @@ class LevenbergMarquardt(_Optimizer):
             U, s, Vt = scipy.linalg.svd(J / d, full_matrices=False, check_finite=False, lapack_driver="gesdd")
         except np.linalg.LinAlgError:  # pragma: no cover - gesdd's rare failure to converge
             U, s, Vt = scipy.linalg.svd(J / d, full_matrices=False, check_finite=False, lapack_driver="gesvd")
-        ur = U.T @ r
         for _ in range(_MAX_BACKTRACK):
             filt = s / (s * s + self.mu)
 
             def solve(rhs):
                 return -(Vt.T @ (filt * (U.T @ rhs))) / d
 
-            v = -(Vt.T @ (filt * ur)) / d
+            v = solve(r)
             jv = J @ v
             predicted = -(r @ jv) - 0.5 * (jv @ jv)
             step = v
