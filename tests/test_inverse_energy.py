@@ -25,6 +25,22 @@ def _factor(rng, la, amp=0.1):
     return a
 
 
+def _assert_derivatives(obj, x, columns, gradient_atol):
+    """Gauss–Newton's identity g = Jᵀr at x, and the gradient and the Jacobian's ``columns`` against central
+    differences (step 1e-6); returns the evaluation at x."""
+    ev = obj.evaluate(x, jacobian=True)
+    np.testing.assert_allclose(ev.jacobian.T @ ev.residuals, ev.gradient, rtol=1e-9, atol=1e-14)
+    h = 1e-6
+    for j in columns:
+        e = np.zeros_like(x)
+        e[j] = h
+        fd = (obj.evaluate(x + e).energy - obj.evaluate(x - e).energy) / (2 * h)
+        assert fd == pytest.approx(ev.gradient[j], rel=1e-5, abs=gradient_atol)
+        fd_r = (obj.evaluate(x + e).residuals - obj.evaluate(x - e).residuals) / (2 * h)
+        np.testing.assert_allclose(fd_r, ev.jacobian[:, j], rtol=1e-4, atol=1e-9)
+    return ev
+
+
 @pytest.fixture(scope="module")
 def model():
     return HarmonicModel(8, 4)
@@ -37,17 +53,7 @@ def test_gradient_and_jacobian_match_finite_differences(model, weights, reg):
     target = model.spectrum(truth, 20).eigenvalues
     obj = Objective(model, target, eigenvalue_weights(target, weights), _par(model, start, True), reg)
     x = obj.initial()
-    ev = obj.evaluate(x, jacobian=True)
-    # Gauss–Newton's identity: the gradient is Jᵀr.
-    np.testing.assert_allclose(ev.jacobian.T @ ev.residuals, ev.gradient, rtol=1e-9, atol=1e-14)
-    h = 1e-6
-    for j in (0, 1, 5, x.size - 1):
-        e = np.zeros_like(x)
-        e[j] = h
-        fd = (obj.evaluate(x + e).energy - obj.evaluate(x - e).energy) / (2 * h)
-        assert fd == pytest.approx(ev.gradient[j], rel=1e-5, abs=1e-10)
-        fd_r = (obj.evaluate(x + e).residuals - obj.evaluate(x - e).residuals) / (2 * h)
-        np.testing.assert_allclose(fd_r, ev.jacobian[:, j], rtol=1e-4, atol=1e-9)
+    _assert_derivatives(obj, x, (0, 1, 5, x.size - 1), gradient_atol=1e-10)
 
 
 def test_energy_is_zero_at_the_truth_and_counts_the_regularizer(model):
@@ -111,16 +117,7 @@ def test_log_factor_gradient_and_jacobian_match_finite_differences(reg):
     obj = Objective(model, target, eigenvalue_weights(target), _par(model, start, True), reg)
     x = obj.initial()
     np.testing.assert_allclose(x, np.log(start), rtol=1e-15)
-    ev = obj.evaluate(x, jacobian=True)
-    np.testing.assert_allclose(ev.jacobian.T @ ev.residuals, ev.gradient, rtol=1e-9, atol=1e-14)
-    h = 1e-6
-    for j in (0, 7, x.size - 1):
-        e = np.zeros_like(x)
-        e[j] = h
-        fd = (obj.evaluate(x + e).energy - obj.evaluate(x - e).energy) / (2 * h)
-        assert fd == pytest.approx(ev.gradient[j], rel=1e-5, abs=1e-12)
-        fd_r = (obj.evaluate(x + e).residuals - obj.evaluate(x - e).residuals) / (2 * h)
-        np.testing.assert_allclose(fd_r, ev.jacobian[:, j], rtol=1e-4, atol=1e-9)
+    ev = _assert_derivatives(obj, x, (0, 7, x.size - 1), gradient_atol=1e-12)
     if reg:
         # the regularizer acts on s = log c: its part of the energy is the bi-Laplacian penalty of s
         value, _ = model.bilaplacian_penalty(np.log(start), reg)
