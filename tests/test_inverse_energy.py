@@ -8,6 +8,7 @@ import pytest
 from shspec import HarmonicModel
 from shspec.errors import InvalidArgumentError, NotPositiveError
 from shspec.sphere.harmonics import degrees
+from shspec.sphere.random import random_centred_coefficients
 from shspec.inverse.energy import Objective, eigenvalue_weights, relative_residual
 from shspec.inverse.parametrization import Parametrization
 from shspec.mesh.model import MeshModel
@@ -156,7 +157,6 @@ def test_not_positive_and_bad_input(model):
 
 def test_identifiability_singular_values_match_a_finite_difference_jacobian():
     from shspec.inverse.identifiability import identifiability
-    from shspec.sphere.random import random_centred_coefficients
 
     model = HarmonicModel(10, 3)
     a = random_centred_coefficients(5, 3, 0.2)
@@ -272,12 +272,37 @@ def test_plan_numeig_recommends_the_smallest_k_within_the_accuracy():
     assert plan_numeig(4, accuracy=1e-3).numeig <= plan.numeig
     impossible = plan_numeig(4, noise=1e-2, accuracy=1e-9, candidates=[30, 40])
     assert impossible.numeig is None and "no K up to 40" in impossible.statement()
-    # the basis: the smallest Lb >= La with (Lb + 1)^2 >= 1.5 K
+    # the floor of the basis scan: the smallest Lb >= La with (Lb + 1)^2 >= 1.5 K
     for k in (36, 100, 576):
         lb = basis_degree_for(k, 4)
         assert (lb + 1) ** 2 >= 1.5 * k and (lb == 4 or lb ** 2 < 1.5 * k)
-    assert plan.lmax == basis_degree_for(plan.numeig, 4)
+    assert plan.analysis_lmax == basis_degree_for(ks[-1], 4)
+    assert plan.lmax >= basis_degree_for(plan.numeig, 4) and plan.basis_change <= 1e-6
+    assert f"Lb = {plan.lmax}" in plan.statement()
     with pytest.raises(InvalidArgumentError):
         plan_numeig(4, np.ones(7))
     with pytest.raises(InvalidArgumentError):
         plan_numeig(4, noise=0.0)
+
+
+def test_converged_basis_degree_against_a_much_larger_basis():
+    """The recommended basis really resolves the K eigenvalues (checked at Lb + 6, which the scan never saw), is the
+    smallest that does by its own measure, and is far above the (Lb + 1)^2 >= 1.5 K floor for a rough rho: there the
+    floor leaves the eigenvalues more than 1e-4 off."""
+    from shspec.galerkin.planning import basis_degree_for, converged_basis_degree
+
+    a = random_centred_coefficients(0, 6, 0.2)
+    lb, change = converged_basis_degree(a, 64, tol=1e-6)
+    reference = HarmonicModel(lb + 6, 6).eigenvalues(a, 64)[1:]
+
+    def error(degree):
+        return np.max(np.abs(HarmonicModel(degree, 6).eigenvalues(a, 64)[1:] / reference - 1))
+
+    assert change <= 1e-6 and error(lb) <= 1e-6
+    below = np.max(np.abs(HarmonicModel(lb - 2, 6).eigenvalues(a, 64)[1:]
+                          / HarmonicModel(lb - 4, 6).eigenvalues(a, 64)[1:] - 1))
+    assert below > 1e-6
+    floor = basis_degree_for(64, 6)
+    assert lb > floor and error(floor) > 1e-4
+    with pytest.raises(InvalidArgumentError):
+        converged_basis_degree(a, 64, tol=0.0)

@@ -12,8 +12,13 @@ the stricter default of ``shspec identifiability`` none up to 4·(La + 1)².  A 
 better determined (g = 630 at K = 289): at a ρ whose high degrees are zero, high-degree changes move the low
 eigenvalues only weakly.
 
-The basis band limit Lb is chosen so that (Lb + 1)² ≥ 1.5 K: a margin of half again as many basis functions as
-eigenvalues, with which the K-th eigenvalue of the fits here had converged (issue 12's truncation estimate).
+The basis band limit Lb of the recommended K is the smallest at which those K eigenvalues of the reference have
+converged: their largest relative change from Lb − 2 to Lb (the basis estimate of :mod:`~shspec.galerkin.truncation`)
+is at most ``basis_tol`` (default 1e-6, the tolerance at which :func:`~shspec.galerkin.solver.spectrum` warns).  The
+scan starts at (Lb + 1)² ≥ 1.5 K, the floor :func:`basis_degree_for`; the floor alone is not enough: for a random ρ
+of degree 10 (amplitude 0.2) and K = 144 its Lb = 14 leaves the eigenvalues 6e-3 off, and Lb = 24 is needed for 6e-7
+(measured against Lb = 28).  The analysis itself runs at the floor of the largest candidate: singular values do not
+need eigenvalues converged to 1e-6, and a converged basis for K = 4(La + 1)² would cost far more than the plan.
 """
 
 from __future__ import annotations
@@ -24,12 +29,15 @@ import numpy as np
 
 from ..checks import check_float, check_int
 from ..errors import InvalidArgumentError
+from ..gaunt.cache import get_table
+from ..gaunt.table import MAX_BASIS_DEGREE
 from ..inverse.identifiability import identifiability_by_numeig
 from ..sphere.factor import ConformalFactor
 from ..sphere.random import random_centred_coefficients
 from .solver import HarmonicModel
+from .truncation import DEFAULT_TRUNCATION_TOL
 
-__all__ = ["NumeigPlan", "basis_degree_for", "candidate_numeigs", "plan_numeig"]
+__all__ = ["NumeigPlan", "basis_degree_for", "converged_basis_degree", "candidate_numeigs", "plan_numeig"]
 
 
 def basis_degree_for(numeig: int, lmax_factor: int) -> int:
@@ -37,6 +45,78 @@ def basis_degree_for(numeig: int, lmax_factor: int) -> int:
     numeig = check_int(numeig, "numeig", minimum=2)
     lmax_factor = check_int(lmax_factor, "lmax_factor", minimum=0)
     return max(int(np.ceil(np.sqrt(1.5 * numeig))) - 1, lmax_factor)
+
+
+#: Degrees of basis added per Gaunt table while :func:`converged_basis_degree` scans upwards.
+_SCAN_CHUNK = 8
+
+
+def converged_basis_degree(reference, numeig: int, *, tol: float = DEFAULT_TRUNCATION_TOL,
+                           cache_dir=None) -> tuple[int, float]:
+    """The smallest Lb ≥ :func:`basis_degree_for` at which the first K eigenvalues of ρ have converged (module notes).
+
+    Parameters
+    ----------
+    reference : (n,) array or ConformalFactor
+        Coefficients of ρ; its degree is La.
+    numeig : int
+        K ≥ 2.
+    tol : float
+        Largest accepted relative change of an eigenvalue from Lb − 2 to Lb, > 0.
+    cache_dir : path-like, optional
+        Where the Gaunt tables are.
+
+    Returns
+    -------
+    lmax : int
+        Lb.
+    change : float
+        The largest relative change from Lb − 2 to Lb (≤ tol).
+
+    Raises
+    ------
+    InvalidArgumentError
+        For bad arguments, or when the eigenvalues have not converged at the largest basis shspec supports.
+    ResourceLimitError
+        When the basis needed would not fit in memory.
+    """
+    a = _reference_coefficients(reference)
+    la = int(np.sqrt(a.size)) - 1
+    numeig = check_int(numeig, "numeig", minimum=2)
+    tol = check_float(tol, "tol", positive=True)
+    lb = basis_degree_for(numeig, la)
+    table = None
+
+    def eigenvalues(degree):
+        nonlocal table
+        if table is None:  # any cached table that covers it, else one of this size
+            table = get_table(degree, la, cache_dir=cache_dir)
+        elif degree > table.lmax:  # the scan goes on: a table a few degrees larger than needed at once
+            table = get_table(min(degree + _SCAN_CHUNK, MAX_BASIS_DEGREE), la, cache_dir=cache_dir)
+        return HarmonicModel(degree, la, table=table).eigenvalues(a, numeig)[1:]
+
+    # the comparison needs Lb − 2 to hold K eigenvalues and the factor's degree
+    previous = eigenvalues(lb - 2) if (lb - 1) ** 2 >= numeig and 2 * (lb - 2) >= la else None
+    change = np.inf
+    while lb <= MAX_BASIS_DEGREE:
+        ev = eigenvalues(lb)
+        if previous is not None:
+            change = float(np.max(np.abs(ev / previous - 1)))
+            if change <= tol:
+                return lb, change
+        previous, lb = ev, lb + 2
+    raise InvalidArgumentError(f"the first {numeig} eigenvalues of rho (degree {la}) have not converged to {tol:g} "
+                               f"at the largest basis Lb = {MAX_BASIS_DEGREE} (last change {change:.2g})")
+
+
+def _reference_coefficients(reference, lmax_factor: int | None = None) -> np.ndarray:
+    """The coefficients of ``reference`` (array or ConformalFactor), cut or zero-padded to degree La if given."""
+    factor = reference if isinstance(reference, ConformalFactor) else ConformalFactor(reference)
+    if lmax_factor is None:
+        return factor.coefficients
+    if factor.lmax >= lmax_factor:
+        return factor.truncated(lmax_factor).coefficients
+    return np.concatenate([factor.coefficients, np.zeros((lmax_factor + 1) ** 2 - factor.coefficients.size)])
 
 
 def candidate_numeigs(lmax_factor: int) -> list[int]:
@@ -55,11 +135,16 @@ class NumeigPlan:
     numeig : int or None
         The smallest candidate K with noise_gain·noise ≤ accuracy (None: no candidate reaches it).
     lmax : int
-        Basis band limit Lb for ``numeig`` (for the largest candidate when numeig is None).
+        Basis band limit Lb at which the reference's first ``numeig`` eigenvalues have converged
+        (:func:`converged_basis_degree`); the analysis basis when numeig is None.
     lmax_factor : int
     noise, accuracy : float
     rows : tuple of Identifiability
         One per candidate K, ascending.
+    basis_change : float or None
+        Largest relative change of those eigenvalues from Lb − 2 to Lb (None when numeig is None).
+    analysis_lmax : int
+        The basis of the analysis (:func:`basis_degree_for` the largest candidate, unless given).
     """
 
     numeig: int | None
@@ -68,11 +153,13 @@ class NumeigPlan:
     noise: float
     accuracy: float
     rows: tuple
+    basis_change: float | None
+    analysis_lmax: int
 
     def to_dict(self) -> dict:
         """JSON-ready, without the singular values."""
         return {"numeig": self.numeig, "lmax": self.lmax, "lmax_factor": self.lmax_factor, "noise": self.noise,
-                "accuracy": self.accuracy,
+                "accuracy": self.accuracy, "basis_change": self.basis_change, "analysis_lmax": self.analysis_lmax,
                 "rows": [{k: v for k, v in r.to_dict().items() if k != "singular_values"} for r in self.rows]}
 
     def statement(self) -> str:
@@ -83,13 +170,15 @@ class NumeigPlan:
                     f"from eigenvalues accurate to {self.noise:g} (noise gain {best.noise_gain:.2g} at K = "
                     f"{best.numeig})")
         row = next(r for r in self.rows if r.numeig == self.numeig)
-        return (f"K = {self.numeig} eigenvalues (basis Lb = {self.lmax}) determine rho of degree "
-                f"{self.lmax_factor} with noise gain {row.noise_gain:.2g}: eigenvalues accurate to {self.noise:g} "
-                f"give rho to about {row.noise_gain * self.noise:.2g} (wanted {self.accuracy:g})")
+        return (f"K = {self.numeig} eigenvalues determine rho of degree {self.lmax_factor} with noise gain "
+                f"{row.noise_gain:.2g}: eigenvalues accurate to {self.noise:g} give rho to about "
+                f"{row.noise_gain * self.noise:.2g} (wanted {self.accuracy:g}); they have converged at basis "
+                f"Lb = {self.lmax} (change {self.basis_change:.1g} from Lb = {self.lmax - 2})")
 
 
 def plan_numeig(lmax_factor: int, reference=None, *, candidates=None, noise: float = 1e-8,
-                accuracy: float = 1e-6, lmax: int | None = None) -> NumeigPlan:
+                accuracy: float = 1e-6, lmax: int | None = None,
+                basis_tol: float = DEFAULT_TRUNCATION_TOL) -> NumeigPlan:
     """Recommend K for fitting ρ of degree La (module notes).
 
     Parameters
@@ -107,6 +196,8 @@ def plan_numeig(lmax_factor: int, reference=None, *, candidates=None, noise: flo
         Wanted relative L2 error of ρ, > 0.
     lmax : int, optional
         Basis band limit of the analysis (default :func:`basis_degree_for` the largest candidate).
+    basis_tol : float
+        Convergence wanted of the recommended K eigenvalues (:func:`converged_basis_degree`).
 
     Returns
     -------
@@ -124,15 +215,12 @@ def plan_numeig(lmax_factor: int, reference=None, *, candidates=None, noise: flo
                                                                   for k in candidates})
     if not ks:
         raise InvalidArgumentError("candidates must name at least one K")
-    if reference is None:
-        a = random_centred_coefficients(0, la, 0.2)
-    else:
-        factor = reference if isinstance(reference, ConformalFactor) else ConformalFactor(reference)
-        a = factor.truncated(la).coefficients if factor.lmax >= la else \
-            np.concatenate([factor.coefficients, np.zeros((la + 1) ** 2 - factor.coefficients.size)])
+    a = random_centred_coefficients(0, la, 0.2) if reference is None else _reference_coefficients(reference, la)
+    basis_tol = check_float(basis_tol, "basis_tol", positive=True)
     lb = basis_degree_for(ks[-1], la) if lmax is None else check_int(lmax, "lmax", minimum=la)
     rows = tuple(identifiability_by_numeig(HarmonicModel(lb, la), a, ks))
     good = [r.numeig for r in rows if not r.underdetermined and r.noise_gain * noise <= accuracy]
     k = good[0] if good else None
-    return NumeigPlan(numeig=k, lmax=basis_degree_for(k, la) if k is not None else lb, lmax_factor=la, noise=noise,
-                      accuracy=accuracy, rows=rows)
+    lmax_k, change = converged_basis_degree(a, k, tol=basis_tol) if k is not None else (lb, None)
+    return NumeigPlan(numeig=k, lmax=lmax_k, lmax_factor=la, noise=noise, accuracy=accuracy, rows=rows,
+                      basis_change=change, analysis_lmax=lb)
