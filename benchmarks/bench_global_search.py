@@ -9,28 +9,47 @@ Random centred ρ (seed 1) of degree 8 (Lb 12, 100 eigenvalues, the K that ``shs
 * ``wide``: a degree ramp that matches twice as many eigenvalues as coefficients at each stage, 2(l + 1)²;
 * ``wide_orient``: both.
 
+Two further cases ask what the degree ramp does with its starts and what capping its stages costs:
+
+* random centred ρ (seed 1) of degree 10 at the setting of the degree-10 goal (Lb 24, 300 eigenvalues), 12 starts:
+  ``capped`` (every stage but the last capped at 40 iterations, ``degree_ramp(..., stage_max_iter=40)``, 4 basin
+  hops) and ``capped_no_hops`` (the same without hops).  Each start records the relative residual at the end of
+  every stage, which shows whether the starts still differ before the last stage;
+* the blob (Lb 20, La 6, 120 eigenvalues, 8 starts), on which the uncapped ramp with 4 hops made 7 of 8 succeed:
+  ``default`` against ``capped``.
+
 A start succeeds when its relative spectral residual is ≤ 1e-10; its ρ error after Möbius + O(3) alignment is
-recorded.  The load average is recorded; times are per start, on one core.
+recorded.  The load average is recorded; times are per start, on one core.  The starts run on a pool of two
+processes of one BLAS thread each (the results equal a serial run's: every start is seeded by its index).  A run
+with ``--only`` replaces only the cases it ran in the JSON file.
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 python benchmarks/bench_global_search.py
 """
 
 from __future__ import annotations
 
+import json
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import load_average, machine_info, main_with_only, threads  # noqa: E402
+from common import RESULTS, load_average, machine_info, main_with_only, threads  # noqa: E402
 
 from shspec import HarmonicModel  # noqa: E402
-from shspec.inverse import FitOptions, Stage, align, fit, harmonic_target  # noqa: E402
+from shspec.inverse import FitOptions, Stage, align, blob_factor, degree_ramp, fit, harmonic_target  # noqa: E402
+from shspec.parallel import make_executor  # noqa: E402
 from shspec.sphere.random import random_centred_coefficients  # noqa: E402
 
 #: name: (degree La, Lb, K, starts)
-CASES = {"random degree 8 (Lb 12, K 100)": (8, 12, 100, 6), "random degree 10 (Lb 14, K 144)": (10, 14, 144, 4)}
+CASES = {"random degree 8 (Lb 12, K 100)": (8, 12, 100, 6), "random degree 10 (Lb 14, K 144)": (10, 14, 144, 4),
+         "random degree 10 (Lb 24, K 300)": (10, 24, 300, 12), "blob (Lb 20, La 6, K 120)": (6, 20, 120, 8)}
+
+#: Iterations of every stage but the last in the ``capped`` variants.
+CAP = 40
 
 
 def _wide(la: int, k: int) -> tuple:
@@ -38,27 +57,51 @@ def _wide(la: int, k: int) -> tuple:
         + (Stage(lmax_factor=la, numeig=k),)
 
 
+def _variants(name: str, la: int, k: int, starts: int) -> dict:
+    if "K 300" in name:
+        capped = degree_ramp(k, la, stage_max_iter=CAP)
+        return {"capped": FitOptions(starts=starts, schedule=capped),
+                "capped_no_hops": FitOptions(starts=starts, schedule=capped, basin_hops=0)}
+    if name.startswith("blob"):
+        return {"default": FitOptions(starts=starts), "capped": FitOptions(starts=starts,
+                                                                           schedule=degree_ramp(k, la, stage_max_iter=CAP))}
+    return {"default": FitOptions(starts=starts), "orient": FitOptions(starts=starts, orient_blocks=True),
+            "wide": FitOptions(starts=starts, schedule=_wide(la, k)),
+            "wide_orient": FitOptions(starts=starts, schedule=_wide(la, k), orient_blocks=True)}
+
+
+def _stage_ends(history) -> list:
+    """[stage, relative residual at its end, iterations] per stage (the basin hops count with the last stage)."""
+    stages = sorted({int(st) for st in history[:, 0]})
+    return [[st, float(history[history[:, 0] == st][-1, 2]), int((history[:, 0] == st).sum())] for st in stages]
+
+
 def run(only: str | None) -> dict:
-    out = {"machine": machine_info(), "load_before": load_average(), "cases": {}}
+    path = RESULTS / "bench_global_search.json"
+    out = json.loads(path.read_text()) if only and path.exists() else {"cases": {}}
+    out.update({"machine": machine_info(), "load_before": load_average()})
     for name, (la, lb, k, starts) in CASES.items():
         if only and only not in name:
             continue
-        truth = random_centred_coefficients(1, la, 0.2)
+        if name.startswith("blob"):
+            truth = blob_factor(la)
+        else:
+            truth = random_centred_coefficients(1, la, 0.2)
         target = harmonic_target(truth, lb, k)
         model = HarmonicModel(lb, la)
-        variants = {"default": FitOptions(starts=starts), "orient": FitOptions(starts=starts, orient_blocks=True),
-                    "wide": FitOptions(starts=starts, schedule=_wide(la, k)),
-                    "wide_orient": FitOptions(starts=starts, schedule=_wide(la, k), orient_blocks=True)}
         rows = {}
-        for label, options in variants.items():
+        for label, options in _variants(name, la, k, starts).items():
             t0 = time.perf_counter()
-            with threads(1):
-                r = fit(target, model, options)
-            rows[label] = {"successes": r.success_count, "starts": starts, "seconds": time.perf_counter() - t0,
+            with threads(1), make_executor(2) as executor:
+                r = fit(target, model, options, executor=executor)
+            rows[label] = {"successes": r.success_count, "starts": starts, "wall_seconds": time.perf_counter() - t0,
+                           "median_seconds_per_start": float(np.median([s.seconds for s in r.starts])),
+                           "load_after": load_average(),
                            "per_start": [{"index": s.index, "relative_residual": s.relative_residual,
                                           "rho_error_after_alignment": align(model.to_factor(s.params),
                                                                              truth).relative_error,
-                                          "iterations": s.iterations, "seconds": s.seconds, "success": s.success}
+                                          "iterations": s.iterations, "seconds": s.seconds, "success": s.success,
+                                          "status": s.status, "stage_ends": _stage_ends(s.history)}
                                          for s in r.starts]}
             print(name, label, r.success_count, "/", starts, flush=True)
         out["cases"][name] = rows

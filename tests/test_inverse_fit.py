@@ -108,8 +108,14 @@ def test_degree_ramp_raises_degree_and_count_together():
     degrees_ = [s.lmax_factor for s in big]
     assert degrees_ == sorted(degrees_) and degrees_[-1] == 15 and big[-1].numeig == 300
     assert all(s.numeig > (s.lmax_factor + 1) ** 2 for s in big)  # every stage overdetermined
+    assert all(s.max_iter is None for s in stages)
+    capped = degree_ramp(120, 6, stage_max_iter=7)
+    assert [(s.lmax_factor, s.numeig) for s in capped] == [(s.lmax_factor, s.numeig) for s in stages]
+    assert [s.max_iter for s in capped] == [7] * 6 + [None]  # the last stage runs to convergence
     with pytest.raises(InvalidArgumentError):
         FitOptions(schedule=(Stage(6), Stage(4)))
+    with pytest.raises(InvalidArgumentError):
+        degree_ramp(120, 6, stage_max_iter=0)
 
 
 def test_escape_moves_keep_power_and_gauge_and_undo_themselves():
@@ -223,6 +229,7 @@ def test_cli_fit_writes_summary_result_and_figures(tmp_path):
 
 def test_cli_degree_ramp_with_basin_hops(tmp_path):
     from shspec.inverse import default_schedule, degree_ramp, load_result_summary
+    from shspec.inverse.schedule import DEFAULT_STAGE_MAX_ITER
 
     assert main(["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "1",
                  "--max-iter", "5", "--schedule", "degree-ramp", "--basin-hops", "1", "--out", str(tmp_path),
@@ -234,7 +241,7 @@ def test_cli_degree_ramp_with_basin_hops(tmp_path):
     history = load_result_summary(tmp_path / "result.h5")["starts"][0].history
     assert sorted(set(history[:, 0].astype(int))) == list(range(len(stages)))  # every stage ran
     # the command line's default schedule is the library's
-    assert default_schedule(HarmonicModel(8, 6), 20) == degree_ramp(20, 6)
+    assert default_schedule(HarmonicModel(8, 6), 20) == degree_ramp(20, 6, stage_max_iter=DEFAULT_STAGE_MAX_ITER)
     assert FitOptions().schedule is None and FitOptions().basin_hops == 4
 
 

@@ -19,7 +19,7 @@ from ..galerkin import HarmonicModel
 from ..galerkin.planning import plan_numeig
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions, parse_schedule
-from ..inverse.schedule import degree_ramp, numeig_ramp
+from ..inverse.schedule import DEFAULT_STAGE_MAX_ITER, degree_ramp, numeig_ramp
 from ..targets import TARGET_SOURCES, Target, parse_target, read_spectrum
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.io import load_mesh
@@ -116,8 +116,9 @@ def register(subparsers) -> None:
     p.add_argument("--numeig-tol", type=float, default=0.01,
                    help="relative eigenvalue error tolerated by --numeig auto")
     p.add_argument("--schedule", default="auto",
-                   help="stages: 'auto' (the model's default: the degree ramp for harmonic fits, which with 4 basin "
-                   "hops made 7 of 8 blob starts succeed; the numeig ramp for meshes), 'degree-ramp', 'ramp' "
+                   help="stages: 'auto' (the model's default: the degree ramp for harmonic fits, every stage but "
+                   "the last capped at 40 iterations, which with 4 basin hops made 7 of 8 blob starts succeed; the "
+                   "numeig ramp for meshes), 'degree-ramp' (the same ramp), 'ramp' "
                    "(numeig 16, 36, 64, ... at full degree: 2 of 8), 'none' (one stage: 0 of 8), degrees "
                    "'2,4,8,15' or degree:numeig pairs '6:16,6:64,6:120'")
     p.add_argument("--basin-hops", type=int, default=d.basin_hops,
@@ -179,7 +180,7 @@ def _schedule(text: str, numeig: int, lmax_factor: int):
     if text == "ramp":
         return numeig_ramp(numeig)
     if text == "degree-ramp":
-        return degree_ramp(numeig, lmax_factor)
+        return degree_ramp(numeig, lmax_factor, stage_max_iter=DEFAULT_STAGE_MAX_ITER)
     return parse_schedule(text)
 
 

@@ -24,7 +24,11 @@ from .options import FitOptions, Stage, StartResult, fits_area
 from .parametrization import Parametrization
 from ..targets import Target
 
-__all__ = ["FitProblem", "run_start", "StartProgress", "numeig_ramp", "degree_ramp", "default_schedule"]
+__all__ = ["FitProblem", "run_start", "StartProgress", "numeig_ramp", "degree_ramp", "default_schedule",
+           "DEFAULT_STAGE_MAX_ITER"]
+
+#: Iterations of every stage but the last in the default degree ramp (see :func:`degree_ramp`).
+DEFAULT_STAGE_MAX_ITER = 40
 
 #: Size of the perturbation given to the parameters a stage adds, relative to the one of a random start: enough to
 #: leave the parity saddle, small enough not to undo what the earlier stages found.
@@ -55,7 +59,7 @@ def numeig_ramp(numeig: int, lmax_factor: int | None = None, first: int = 16) ->
     return tuple(Stage(lmax_factor=lmax_factor, numeig=k) for k in [*ks, int(numeig)])
 
 
-def degree_ramp(numeig: int, lmax_factor: int) -> tuple[Stage, ...]:
+def degree_ramp(numeig: int, lmax_factor: int, stage_max_iter: int | None = None) -> tuple[Stage, ...]:
     """A schedule that raises the factor's degree and the eigenvalue count together, then matches more eigenvalues.
 
     Stage l = 2, ..., La fits degree l to (l + 2)² eigenvalues (16, 25, 36, ...), each stage overdetermined; then
@@ -72,14 +76,22 @@ def degree_ramp(numeig: int, lmax_factor: int) -> tuple[Stage, ...]:
         Eigenvalues of the last stage.
     lmax_factor : int
         Degree La of the last stages (≥ 2).
+    stage_max_iter : int, optional
+        Iterations of every stage but the last (None: :attr:`FitOptions.max_iter`).  Their optima are not the truth
+        cut to their degree or eigenvalue count (the higher degrees move the low eigenvalues too), so converging
+        them buys little.  At degree 10 (Lb 24, K = 300) with 4 basin hops, capping them at 40 iterations gave 2
+        of 12 successes at a median 116 s per start (benchmarks/results/bench_global_search.json), where the
+        uncapped ramp had given 0 of 4 at a median 163 s (``goal_degree10`` in bench_inverse.json); on the blob
+        (La 6, K 120) 7 of 8 either way.
     """
     numeig, lmax_factor = check_int(numeig, "numeig", minimum=2), check_int(lmax_factor, "lmax_factor", minimum=2)
-    stages = [Stage(lmax_factor=l, numeig=(l + 2) ** 2) for l in range(2, int(lmax_factor) + 1)
-              if (l + 2) ** 2 < numeig]
+    stage_max_iter = check_int(stage_max_iter, "stage_max_iter", allow_none=True, minimum=1)
+    stages = [Stage(lmax_factor=l, numeig=(l + 2) ** 2, max_iter=stage_max_iter)
+              for l in range(2, int(lmax_factor) + 1) if (l + 2) ** 2 < numeig]
     j = int(lmax_factor) + 3
     j += j % 2
     while j * j < numeig:
-        stages.append(Stage(lmax_factor=int(lmax_factor), numeig=j * j))
+        stages.append(Stage(lmax_factor=int(lmax_factor), numeig=j * j, max_iter=stage_max_iter))
         j += 2
     stages.append(Stage(lmax_factor=int(lmax_factor), numeig=int(numeig)))
     return tuple(stages)
@@ -90,12 +102,14 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
     models: the factor's degree), :func:`numeig_ramp` for models without levels (meshes).
 
     The degree ramp with 4 basin hops made 7 of 8 blob starts succeed, the numeig ramp 2 of 8 and one stage none
-    (benchmarks/results/bench_inverse.json).
+    (benchmarks/results/bench_inverse.json).  Its stages but the last are capped at
+    :data:`DEFAULT_STAGE_MAX_ITER` iterations: the same 7 of 8 on the blob in 155 s against 171 s for the 8 starts,
+    and at degree 10 (K = 300) 2 of 12 (benchmarks/results/bench_global_search.json).
     """
     levels = model.levels()
     if not levels:
         return numeig_ramp(numeig)
-    return degree_ramp(numeig, levels[-1])
+    return degree_ramp(numeig, levels[-1], stage_max_iter=DEFAULT_STAGE_MAX_ITER)
 
 
 class FitProblem:
