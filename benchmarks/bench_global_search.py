@@ -63,8 +63,8 @@ def _variants(name: str, la: int, k: int, starts: int) -> dict:
         return {"capped": FitOptions(starts=starts, schedule=capped),
                 "capped_no_hops": FitOptions(starts=starts, schedule=capped, basin_hops=0)}
     if name.startswith("blob"):
-        return {"default": FitOptions(starts=starts), "capped": FitOptions(starts=starts,
-                                                                           schedule=degree_ramp(k, la, stage_max_iter=CAP))}
+        capped = degree_ramp(k, la, stage_max_iter=CAP)
+        return {"default": FitOptions(starts=starts), "capped": FitOptions(starts=starts, schedule=capped)}
     return {"default": FitOptions(starts=starts), "orient": FitOptions(starts=starts, orient_blocks=True),
             "wide": FitOptions(starts=starts, schedule=_wide(la, k)),
             "wide_orient": FitOptions(starts=starts, schedule=_wide(la, k), orient_blocks=True)}

@@ -99,15 +99,15 @@ def register(subparsers) -> None:
                    help="blob | star:l,m,p | mesh:PATH | spectrum:FILE (text with one eigenvalue per line, or the "
                    "last column of 'shspec mesh-spectrum' output; .npy; .json)")
     p.add_argument("--lmax", type=int, default=None,
-                   help="basis band limit Lb (default: with --numeig, 30; without, the planned Lb: the smallest at which "
-                   "the reference's first K eigenvalues change by at most 1e-6 from Lb - 2)")
+                   help="basis band limit Lb (default: with --numeig, 30; without, the planned Lb: the smallest at "
+                   "which the reference's first K eigenvalues change by at most 1e-6 from Lb - 2)")
     p.add_argument("--lmax-factor", type=int, default=15, help="factor band limit La")
     p.add_argument("--numeig", type=_numeig, default=None,
                    help="eigenvalues matched, lambda_0 = 0 included (a spectrum: file's first NUMEIG; all if fewer). "
                    "Default for harmonic fits: planned, the smallest K of shspec identifiability's candidates that "
                    "determines a random reference rho of degree La to 1e-8 from eigenvalues fitted to 1e-13 (noise "
-                   "gain <= 1e5; at La = 15: K = 289, Lb = 36; the blob, without degrees above 6, needs 704: ask shspec "
-                   "identifiability --target), capped by a spectrum file's length; it is printed and "
+                   "gain <= 1e5; at La = 15: K = 289, Lb = 36; the blob, without degrees above 6, needs 704: ask "
+                   "shspec identifiability --target), capped by a spectrum file's length; it is printed and "
                    "written to summary.json. For mesh fits 256. "
                    "'auto' for mesh targets: those whose estimated discretization error (against one 4-to-1 "
                    "subdivision of the mesh) is at most --numeig-tol, of at most min(n/4, 300); 'all' for mesh "

@@ -27,8 +27,9 @@ def register(subparsers) -> None:
     p.add_argument("--numeig", default=None,
                    help="K values, comma-separated (default: (La+2)^2 and 1.25, 1.5, ..., 4 times (La+1)^2)")
     p.add_argument("--lmax", type=int, default=None,
-                   help="basis band limit Lb of the analysis (default: (Lb+1)^2 >= 1.5 K for the largest K); the recommended "
-                   "K gets its own Lb, the smallest at which its eigenvalues change by at most 1e-6 from Lb - 2")
+                   help="basis band limit Lb of the analysis (default: (Lb+1)^2 >= 1.5 K for the largest K); the "
+                   "recommended K gets its own Lb, the smallest at which its eigenvalues change by at most 1e-6 "
+                   "from Lb - 2")
     p.add_argument("--target", default="blob",
                    help="reference rho: blob | random:SEED | star:l,m,p | mesh:PATH (the harmonic truth)")
     p.add_argument("--noise", type=float, default=1e-8, help="relative noise sigma on the eigenvalues")

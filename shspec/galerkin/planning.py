@@ -16,8 +16,8 @@ The basis band limit Lb of the recommended K is the smallest at which those K ei
 converged: their largest relative change from Lb − 2 to Lb (the basis estimate of :mod:`~shspec.galerkin.truncation`)
 is at most ``basis_tol`` (default 1e-6, the tolerance at which :func:`~shspec.galerkin.solver.spectrum` warns).  The
 scan starts at (Lb + 1)² ≥ 1.5 K, the floor :func:`basis_degree_for`; the floor alone is not enough: for a random ρ
-of degree 10 (amplitude 0.2) and K = 144 its Lb = 14 leaves the eigenvalues 6e-3 off, and Lb = 24 is needed for 6e-7
-(measured against Lb = 28).  The analysis itself runs at the floor of the largest candidate: singular values do not
+of degree 10 (amplitude 0.2, seed 1) and K = 144 its Lb = 14 leaves the eigenvalues 6e-3 off, and at Lb = 24 they
+are still 6e-7 off (measured against Lb = 28); the plan's own reference (seed 0) gets Lb = 26.  The analysis itself runs at the floor of the largest candidate: singular values do not
 need eigenvalues converged to 1e-6, and a converged basis for K = 4(La + 1)² would cost far more than the plan.
 """
 
@@ -53,7 +53,8 @@ _SCAN_CHUNK = 8
 
 def converged_basis_degree(reference, numeig: int, *, tol: float = DEFAULT_TRUNCATION_TOL,
                            cache_dir=None) -> tuple[int, float]:
-    """The smallest Lb ≥ :func:`basis_degree_for` at which the first K eigenvalues of ρ have converged (module notes).
+    """The smallest Lb ≥ :func:`basis_degree_for` at which the first K eigenvalues of ρ have converged (module
+    notes).
 
     Parameters
     ----------
