@@ -51,15 +51,15 @@ def check_float(value, name: str, *, minimum: float | None = None, positive: boo
     return value
 
 
-def check_options(options, cls: type):
+def check_options(options, cls: type, name: str = "options"):
     """``options``, or ``cls()`` when it is None, after checking that it is an instance of the options class ``cls``.
 
     Raises
     ------
     InvalidArgumentError
-        Naming the class expected and the type given.
+        Naming the argument (``name``), the class expected and the type given.
     """
     opt = options if options is not None else cls()
     if not isinstance(opt, cls):
-        raise InvalidArgumentError(f"options must be {cls.__name__}, got {type(opt).__name__}")
+        raise InvalidArgumentError(f"{name} must be {cls.__name__}, got {type(opt).__name__}")
     return opt

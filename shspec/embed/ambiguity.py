@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from ..checks import check_int
+from ..checks import check_int, check_options
 from ..errors import InvalidArgumentError
 from ..mesh.cotan import cotan_stiffness, vertex_areas
 from ..mesh.triangle_mesh import TriangleMesh
@@ -173,10 +173,8 @@ def detect_ambiguity(sphere: TriangleMesh, result: EmbedResult, options: Ambigui
     -------
     AmbiguityReport
     """
-    opt = options if options is not None else AmbiguityOptions()
-    eopt = embed_options if embed_options is not None else EmbedOptions()
-    if not isinstance(opt, AmbiguityOptions) or not isinstance(eopt, EmbedOptions):
-        raise InvalidArgumentError("options must be AmbiguityOptions and embed_options EmbedOptions")
+    opt = check_options(options, AmbiguityOptions)
+    eopt = check_options(embed_options, EmbedOptions, "embed_options")
     sphere = check_sphere(sphere)
     if not isinstance(result, EmbedResult):
         raise InvalidArgumentError(f"result must be an EmbedResult, got {type(result).__name__}")

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import check_options
 from ..errors import InvalidArgumentError
 from ..model import SpectralModel
 from .checkpoint import fingerprint, load_checkpoint, save_checkpoint
@@ -119,7 +120,7 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     >>> target = harmonic_target(blob_factor(), lmax=12, numeig=40)
     >>> result = fit(target, HarmonicModel(12, 6), FitOptions(starts=1))  # doctest: +SKIP
     """
-    options = FitOptions() if options is None else options
+    options = check_options(options, FitOptions)
     problem = FitProblem(model, target, options, init=init)
     fp = fingerprint(options, target.eigenvalues, model.describe()
                      + ("" if init is None else " init " + hashlib.sha256(problem.init.tobytes()).hexdigest()))

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from ..checks import check_options
 from ..errors import InvalidArgumentError, MeshError, NotPositiveError
 from ..model import TRANSFORMS, SpectralModel, Spectrum, regularization_weight
 from ..sphere.evaluate import sample_harmonic
@@ -109,8 +110,7 @@ class MeshModel(SpectralModel):
                  lmax_factor: int | None = None, reg_kind: str = "bilaplacian"):
         if not isinstance(mesh, TriangleMesh):
             raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
-        if options is not None and not isinstance(options, EigenOptions):
-            raise InvalidArgumentError(f"options must be EigenOptions, got {type(options).__name__}")
+        options = check_options(options, EigenOptions)
         if transform not in TRANSFORMS:
             raise InvalidArgumentError(f"transform must be one of {TRANSFORMS}, got {transform!r}")
         if reg_kind not in REGULARIZER_KINDS:
