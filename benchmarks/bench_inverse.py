@@ -172,8 +172,9 @@ def bench_success_by_degree(report, starts, workers, degrees=(6, 8, 12)):
         target = harmonic_target(truth, plan.lmax, plan.numeig)
         with make_executor(workers) as ex:
             result = fit(target, HarmonicModel(plan.lmax, la), FitOptions(starts=starts), executor=ex)
-        section[f"degree {la}"] = {"setting": f"random centred rho (seed 1, degree {la}), planned K={plan.numeig}, "
-                                              f"Lb={plan.lmax}", **_goal_summary(result, truth, f"FitOptions(starts={starts})")}
+        setting = f"random centred rho (seed 1, degree {la}), planned K={plan.numeig}, Lb={plan.lmax}"
+        section[f"degree {la}"] = {"setting": setting,
+                                   **_goal_summary(result, truth, f"FitOptions(starts={starts})")}
         report["success_by_degree"] = section
         _save(report)
 
