@@ -3,7 +3,8 @@
 Random centred ρ (seed 1) of degree 8 (Lb 12, 100 eigenvalues, the K that ``shspec fit`` plans) and degree 10
 (Lb 14, 144 eigenvalues, planned), several starts of seed 0, one BLAS/numba thread, serial.  Variants:
 
-* ``default``: the degree ramp with 4 basin hops (half-turns and sign flips of single degree blocks);
+* ``default``: the (uncapped) degree ramp with 4 basin hops of the cheap moves (half-turns and sign flips of
+  single degree blocks), the library's default when these were measured;
 * ``orient``: the same with ``orient_blocks`` (when a block enters, its 47 octahedral orientations and reflections
   relative to the lower blocks are tried);
 * ``wide``: a degree ramp that matches twice as many eigenvalues as coefficients at each stage, 2(l + 1)²;
@@ -13,15 +14,18 @@ Two further cases ask what the degree ramp does with its starts and what capping
 
 * random centred ρ (seed 1) of degree 10 at the setting of the degree-10 goal (Lb 24, 300 eigenvalues), 12 starts:
   ``capped`` (every stage but the last capped at 40 iterations, ``degree_ramp(..., stage_max_iter=40)``, 4 basin
-  hops) and ``capped_no_hops`` (the same without hops).  Each start records the relative residual at the end of
+  hops) and ``capped_no_hops`` (the same without hops), ``capped_hops12_cheap`` (up to 12 hops of the
+  cheap moves, 8 starts) and ``capped_hops12`` (the same with the octahedral grid moves when the cheap ones are
+  exhausted, ``hop_grid``: the library's default).  Each start records the relative residual at the end of
   every stage, which shows whether the starts still differ before the last stage;
-* the blob (Lb 20, La 6, 120 eigenvalues, 8 starts), on which the uncapped ramp with 4 hops made 7 of 8 succeed:
-  ``default`` against ``capped``.
+* the blob (Lb 20, La 6, 120 eigenvalues, 8 starts): ``default`` (the library's defaults: the capped ramp, 12
+  hops, the grid moves) against ``capped`` (the capped ramp with 4 cheap hops, the default before).
 
 A start succeeds when its relative spectral residual is ≤ 1e-10; its ρ error after Möbius + O(3) alignment is
 recorded.  The load average is recorded; times are per start, on one core.  The starts run on a pool of two
 processes of one BLAS thread each (the results equal a serial run's: every start is seeded by its index).  A run
-with ``--only`` replaces only the cases it ran in the JSON file.
+with ``--only TEXT`` runs the variants whose "case variant" name contains TEXT and replaces only those in the JSON
+file.
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 python benchmarks/bench_global_search.py
 """
@@ -60,14 +64,20 @@ def _wide(la: int, k: int) -> tuple:
 def _variants(name: str, la: int, k: int, starts: int) -> dict:
     if "K 300" in name:
         capped = degree_ramp(k, la, stage_max_iter=CAP)
-        return {"capped": FitOptions(starts=starts, schedule=capped),
-                "capped_no_hops": FitOptions(starts=starts, schedule=capped, basin_hops=0)}
+        return {"capped": FitOptions(starts=starts, schedule=capped, basin_hops=4),
+                "capped_no_hops": FitOptions(starts=starts, schedule=capped, basin_hops=0),
+                "capped_hops12_cheap": FitOptions(starts=8, schedule=capped, basin_hops=12, hop_grid=False),
+                "capped_hops12": FitOptions(starts=8, schedule=capped, basin_hops=12, hop_grid=True)}
     if name.startswith("blob"):
         capped = degree_ramp(k, la, stage_max_iter=CAP)
-        return {"default": FitOptions(starts=starts), "capped": FitOptions(starts=starts, schedule=capped)}
-    return {"default": FitOptions(starts=starts), "orient": FitOptions(starts=starts, orient_blocks=True),
-            "wide": FitOptions(starts=starts, schedule=_wide(la, k)),
-            "wide_orient": FitOptions(starts=starts, schedule=_wide(la, k), orient_blocks=True)}
+        return {"default": FitOptions(starts=starts),
+                "capped": FitOptions(starts=starts, schedule=capped, basin_hops=4, hop_grid=False)}
+    # the defaults of the time these were measured: the uncapped ramp, 4 cheap hops
+    old = dict(starts=starts, basin_hops=4, hop_grid=False)
+    ramp = degree_ramp(k, la)
+    return {"default": FitOptions(schedule=ramp, **old), "orient": FitOptions(schedule=ramp, orient_blocks=True, **old),
+            "wide": FitOptions(schedule=_wide(la, k), **old),
+            "wide_orient": FitOptions(schedule=_wide(la, k), orient_blocks=True, **old)}
 
 
 def _stage_ends(history) -> list:
@@ -81,7 +91,7 @@ def run(only: str | None) -> dict:
     out = json.loads(path.read_text()) if only and path.exists() else {"cases": {}}
     out.update({"machine": machine_info(), "load_before": load_average()})
     for name, (la, lb, k, starts) in CASES.items():
-        if only and only not in name:
+        if only and not any(only in f"{name} {label}" for label in _variants(name, la, k, starts)):
             continue
         if name.startswith("blob"):
             truth = blob_factor(la)
@@ -89,12 +99,14 @@ def run(only: str | None) -> dict:
             truth = random_centred_coefficients(1, la, 0.2)
         target = harmonic_target(truth, lb, k)
         model = HarmonicModel(lb, la)
-        rows = {}
+        rows = out["cases"].get(name, {})
         for label, options in _variants(name, la, k, starts).items():
+            if only and only not in f"{name} {label}":
+                continue
             t0 = time.perf_counter()
             with threads(1), make_executor(2) as executor:
                 r = fit(target, model, options, executor=executor)
-            rows[label] = {"successes": r.success_count, "starts": starts, "wall_seconds": time.perf_counter() - t0,
+            rows[label] = {"successes": r.success_count, "starts": options.starts, "wall_seconds": time.perf_counter() - t0,
                            "median_seconds_per_start": float(np.median([s.seconds for s in r.starts])),
                            "load_after": load_average(),
                            "per_start": [{"index": s.index, "relative_residual": s.relative_residual,
@@ -103,7 +115,7 @@ def run(only: str | None) -> dict:
                                           "iterations": s.iterations, "seconds": s.seconds, "success": s.success,
                                           "status": s.status, "stage_ends": _stage_ends(s.history)}
                                          for s in r.starts]}
-            print(name, label, r.success_count, "/", starts, flush=True)
+            print(name, label, r.success_count, "/", options.starts, flush=True)
         out["cases"][name] = rows
     out["load_after"] = load_average()
     return out

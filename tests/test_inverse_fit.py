@@ -242,7 +242,7 @@ def test_cli_degree_ramp_with_basin_hops(tmp_path):
     assert sorted(set(history[:, 0].astype(int))) == list(range(len(stages)))  # every stage ran
     # the command line's default schedule is the library's
     assert default_schedule(HarmonicModel(8, 6), 20) == degree_ramp(20, 6, stage_max_iter=DEFAULT_STAGE_MAX_ITER)
-    assert FitOptions().schedule is None and FitOptions().basin_hops == 4
+    assert FitOptions().schedule is None and FitOptions().basin_hops == 12 and FitOptions().hop_grid
 
 
 def test_cli_mesh_fit_with_default_schedule(tmp_path):
@@ -434,3 +434,69 @@ def test_cli_fit_without_numeig_plans_k_and_lmax(tmp_path, capsys):
     plan = plan_numeig(3, random_centred_coefficients(0, 3, 0.2), noise=1e-13, accuracy=1e-8)
     assert summary["numeig_plan"]["numeig"] == plan.numeig == summary["numeig"]
     assert summary["numeig_plan"]["lmax"] == plan.lmax
+
+
+def test_grid_hop_undoes_a_quarter_turn_when_the_cheap_moves_find_nothing(monkeypatch):
+    """A quarter-turn about z of the degree-3 block is no product of the cheap moves (the half-turns about the axes
+    and signs).  With the cheap moves exhausted (here: none), a hop without ``hop_grid`` accepts nothing; with it the
+    grid's inverse quarter-turn (energy 0 before any refit, so tried first) returns to the truth."""
+    from shspec.inverse.schedule import FitProblem, StartProgress, _basin_hop
+    from shspec.sphere.harmonics import degrees
+    from shspec.sphere.rotate import rotate_coefficients
+
+    target, model = harmonic_target(blob_factor(), 12, 49), HarmonicModel(12, 6)
+    truth = blob_factor().coefficients
+    sel = degrees(6) == 3
+    wrong = truth.copy()
+    wrong[sel] = rotate_coefficients(np.where(sel, truth, 0.0), np.array([np.pi / 2, 0.0, 0.0]))[sel]
+    cheap = type(model).escape_moves
+    monkeypatch.setattr(type(model), "escape_moves",
+                        lambda self, params, level=None, *, newest=False:
+                        cheap(self, params, level, newest=True) if newest else [])
+    ends = {}
+    for grid in (False, True):
+        problem = FitProblem(model, target, FitOptions(starts=1, max_iter=30, schedule=(Stage(),), basin_hops=2,
+                                                       hop_iter=3, hop_grid=grid))
+        obj = problem.objective(0, wrong)
+        ev = obj.evaluate(obj.initial())
+        assert ev.relative_residual > 1e-3
+        progress = StartProgress(0, 0, wrong, None, params=wrong, energy=ev.energy,
+                                 relative_residual=ev.relative_residual, eigenvalues=ev.eigenvalues)
+        _basin_hop(problem, progress, "energy_tol")
+        ends[grid] = (progress.relative_residual, align(ConformalFactor(progress.params), truth).relative_error)
+    assert ends[False][0] == ev.relative_residual
+    assert ends[True][0] < 1e-10 and ends[True][1] < 1e-8
+
+
+def test_hop_options_are_checked():
+    with pytest.raises(InvalidArgumentError, match="hop_tries"):
+        FitOptions(hop_tries=0)
+    with pytest.raises(InvalidArgumentError, match="hop_grid must be a bool"):
+        FitOptions(hop_grid="yes")
+
+
+def test_a_hop_refits_at_most_hop_tries_moves(small, monkeypatch):
+    """At the truth (energy 0) no move can be accepted, so a hop refits exactly min(moves, hop_tries) of them."""
+    from shspec.inverse import schedule as schedule_module
+    from shspec.inverse.schedule import FitProblem, StartProgress, _hop_once
+
+    target, model = small
+    truth = blob_factor().coefficients
+    calls = {"n": 0}
+    original = schedule_module.make_optimizer
+
+    def counting(*args, **kwargs):
+        calls["n"] += 1
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(schedule_module, "make_optimizer", counting)
+    moves = model.escape_moves(truth)
+    for tries in (1, 5, len(moves) + 3):
+        problem = FitProblem(model, target, FitOptions(starts=1, schedule=(Stage(),), hop_iter=1, hop_tries=tries))
+        obj = problem.objective(0, truth)
+        ev = obj.evaluate(obj.initial())
+        progress = StartProgress(0, 0, truth, None, params=truth, energy=ev.energy,
+                                 relative_residual=ev.relative_residual, eigenvalues=ev.eigenvalues)
+        calls["n"] = 0
+        accepted, _ = _hop_once(problem, progress, 0, moves, "residual_tol")
+        assert not accepted and calls["n"] == min(tries, len(moves))

@@ -127,15 +127,28 @@ class FitOptions:
         to 3e-15 in 28 iterations at K = 600 (Lb 40), where plain LM was at 3e-9 after 60.
     basin_hops : int
         After the last stage, while the relative residual is above success_tol, up to this many basin hops (0:
-        none): power-preserving moves of one degree block (half-turns about the axes, signs of odd blocks) each get
-        ``hop_iter`` iterations, and the first that lowers the energy is refitted to convergence.  Not checkpointed
-        (a run resumed after the last stage repeats it).  On the blob with :func:`~shspec.inverse.degree_ramp`,
-        ``basin_hops=4`` (hop_iter 15) raised the successes from 2 to 7 of 8 starts (median CPU time per start
-        16 s → 34 s on a loaded machine; ``basin_hops=3`` with hop_iter 30: 6 of 8, 41 s).  At degree 10 (Lb 24,
-        K = 300, the capped degree ramp) the hops made every success: 2 of 12 starts with them, 0 of 12 without,
-        at a median 116 s against 36 s per start (benchmarks/results/bench_global_search.json).
+        none).  A hop first tries the model's cheap moves (power-preserving moves of one degree block: half-turns
+        about the axes, signs of odd blocks), and when none of them lowers the energy, the grid moves of
+        ``hop_grid``.  Each move tried gets ``hop_iter`` iterations, and the first that lowers the energy is
+        refitted to convergence.  The hops stop at success, after ``basin_hops`` accepted moves, or when no move
+        lowers the energy, so a larger budget costs only the starts that are still improving.  Not checkpointed (a
+        run resumed after the last stage repeats it).  On the blob with :func:`~shspec.inverse.degree_ramp`, 4 hops
+        (hop_iter 15) raised the successes from 2 to 7 of 8 starts.  At degree 10 (Lb 24, K = 300, the capped
+        degree ramp) the hops made every success: 0 of 12 starts without them, 2 of 12 with 4 and 5 of 8 with 12
+        (cheap moves only; the successes took 1 to 10 accepted hops), 6 of 8 with 12 and ``hop_grid``, at a median
+        241 s per start (benchmarks/results/bench_global_search.json).  On the blob (Lb 20, La 6, K = 120) the
+        defaults made 8 of 8 succeed (7 of 8 with 4 cheap hops).
     hop_iter : int
         Iterations given to each move of a basin hop.
+    hop_grid : bool
+        When no cheap move lowers the energy, try every degree block turned by the 23 rotations of the octahedral
+        group (and, for odd blocks, by the 24 improper ones): :meth:`~shspec.model.SpectralModel.escape_moves`
+        with ``newest=True`` at each level, 303 moves at degree 10.  In the degree-10 setting above it rescued one
+        of the 3 starts whose cheap moves were exhausted with ``hop_tries`` 48, two of them when every grid move
+        could be refitted (a probe; the failing one then spent 8 minutes in one hop).
+    hop_tries : int
+        At most this many moves of a hop are refitted, those of lowest energy before any refit (one eigensolve
+        each); it bounds the cost of a hop that finds nothing.
     orient_blocks : bool
         After each stage that first fits a new level (a new degree block), try the model's orientations of that
         block relative to the ones fitted before (:meth:`~shspec.model.SpectralModel.escape_moves` with
@@ -169,8 +182,10 @@ class FitOptions:
     lbfgs_memory: int = 20
     lm_damping: float = 1e-3
     lm_acceleration: bool = True
-    basin_hops: int = 4
+    basin_hops: int = 12
     hop_iter: int = 15
+    hop_grid: bool = True
+    hop_tries: int = 48
     orient_blocks: bool = False
     distinct_tol: float = 1e-4
     success_tol: float = 1e-10
@@ -204,6 +219,10 @@ class FitOptions:
             raise InvalidArgumentError(f"lm_acceleration must be a bool, got {self.lm_acceleration!r}")
         check_int(self.basin_hops, "basin_hops", minimum=0)
         check_int(self.hop_iter, "hop_iter", minimum=1)
+        check_int(self.hop_tries, "hop_tries", minimum=1)
+        for name in ("hop_grid", "orient_blocks"):
+            if not isinstance(getattr(self, name), bool):
+                raise InvalidArgumentError(f"{name} must be a bool, got {getattr(self, name)!r}")
         check_int(self.checkpoint_every, "checkpoint_every", minimum=0)
         if self.checkpoint_every and not self.checkpoint_path:
             raise InvalidArgumentError("checkpoint_every > 0 needs a checkpoint_path")

@@ -104,7 +104,8 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
     The degree ramp with 4 basin hops made 7 of 8 blob starts succeed, the numeig ramp 2 of 8 and one stage none
     (benchmarks/results/bench_inverse.json).  Its stages but the last are capped at
     :data:`DEFAULT_STAGE_MAX_ITER` iterations: the same 7 of 8 on the blob in 155 s against 171 s for the 8 starts,
-    and at degree 10 (K = 300) 2 of 12 (benchmarks/results/bench_global_search.json).
+    and at degree 10 (K = 300) 2 of 12 with 4 hops; with the default hops (12, and the grid moves) 8 of 8 on the
+    blob and 6 of 8 at degree 10 (benchmarks/results/bench_global_search.json).
     """
     levels = model.levels()
     if not levels:
@@ -328,9 +329,10 @@ def _level_text(model: SpectralModel, level: int | None) -> str:
 
 
 def _hop_once(problem: FitProblem, progress: StartProgress, s: int, moves: list, status: str) -> tuple[bool, str]:
-    """Try ``moves`` (parameter vectors) from the state in ``progress`` with the objective of stage s: in the order
-    of their energy before any refit (one eigensolve each), each refitted for ``hop_iter`` iterations; the first that
-    ends below the current energy is refitted to convergence and accepted into ``progress``.  Deterministic.
+    """Try ``moves`` (parameter vectors) from the state in ``progress`` with the objective of stage s: the
+    ``hop_tries`` of lowest energy before any refit (one eigensolve each), in that order, each refitted for
+    ``hop_iter`` iterations; the first that ends below the current energy is refitted to convergence and accepted
+    into ``progress``.  Deterministic.
 
     Returns (accepted, status of the last refit or ``status``)."""
     opt = problem.options
@@ -355,7 +357,7 @@ def _hop_once(problem: FitProblem, progress: StartProgress, s: int, moves: list,
             return np.inf
 
     energies = [energy(q) for q in moves]
-    for k in np.argsort(energies, kind="stable"):
+    for k in np.argsort(energies, kind="stable")[:opt.hop_tries]:
         if not np.isfinite(energies[k]):
             break
         out = run(moves[k], opt.hop_iter)
@@ -390,20 +392,35 @@ def _orient_new_block(problem: FitProblem, progress: StartProgress, s: int) -> N
 def _basin_hop(problem: FitProblem, progress: StartProgress, status: str) -> str:
     """Leave a local minimum by the model's escape moves (see :attr:`FitOptions.basin_hops`).
 
-    The moves keep the model's invariant (harmonic models: the per-degree power, by half-turns and sign flips of
-    single degree blocks); each hop is :func:`_hop_once` on the last stage, and the hops stop at success, after
-    ``basin_hops`` accepted moves, or when no move lowers the energy.  Deterministic.  Models without moves make this
-    a no-op.
+    The moves keep the model's invariant (harmonic models: the per-degree power).  Each hop is :func:`_hop_once` on
+    the last stage with the cheap moves (half-turns and sign flips of single degree blocks), and, when none of them
+    lowers the energy and ``hop_grid`` is set, with the grid moves (every block through the octahedral group).
+    The hops stop at success, after ``basin_hops`` accepted moves, or when no move lowers the energy.
+    Deterministic.  Models without moves make this a no-op.
     """
     opt = problem.options
     s = len(problem.stages) - 1
+    level = problem.level(s)
     for hop in range(opt.basin_hops):
-        moves = problem.model.escape_moves(progress.params, problem.level(s))
+        moves = problem.model.escape_moves(progress.params, level)
         accepted, status = _hop_once(problem, progress, s, moves, status)
+        tried = f"{len(moves)} moves"
+        if not accepted and opt.hop_grid:
+            grid = _grid_moves(problem.model, progress.params, level)
+            if grid:
+                accepted, status = _hop_once(problem, progress, s, grid, status)
+                tried += f", then {min(len(grid), opt.hop_tries)} of {len(grid)} grid moves"
         if opt.progress:
             print(f"  start {progress.index} basin hop {hop + 1}: "
                   + (f"a move was accepted, {status}, max rel. residual {progress.relative_residual:.3e}" if accepted
-                     else f"none of {len(moves)} moves lowers the energy"), file=sys.stderr, flush=True)
+                     else f"none of {tried} lowers the energy"), file=sys.stderr, flush=True)
         if not accepted or progress.relative_residual <= opt.success_tol:
             break
     return status
+
+
+def _grid_moves(model: SpectralModel, params: np.ndarray, level: int | None) -> list:
+    """The moves of every level up to ``level`` taken alone (``escape_moves(..., newest=True)`` per level)."""
+    levels = model.levels()
+    top = levels[-1] if level is None and levels else level
+    return [q for lv in levels if lv <= top for q in model.escape_moves(params, lv, newest=True)]
