@@ -75,7 +75,8 @@ def _variants(name: str, la: int, k: int, starts: int) -> dict:
     # the defaults of the time these were measured: the uncapped ramp, 4 cheap hops
     old = dict(starts=starts, basin_hops=4, hop_grid=False)
     ramp = degree_ramp(k, la)
-    return {"default": FitOptions(schedule=ramp, **old), "orient": FitOptions(schedule=ramp, orient_blocks=True, **old),
+    return {"default": FitOptions(schedule=ramp, **old),
+            "orient": FitOptions(schedule=ramp, orient_blocks=True, **old),
             "wide": FitOptions(schedule=_wide(la, k), **old),
             "wide_orient": FitOptions(schedule=_wide(la, k), orient_blocks=True, **old)}
 
@@ -106,7 +107,8 @@ def run(only: str | None) -> dict:
             t0 = time.perf_counter()
             with threads(1), make_executor(2) as executor:
                 r = fit(target, model, options, executor=executor)
-            rows[label] = {"successes": r.success_count, "starts": options.starts, "wall_seconds": time.perf_counter() - t0,
+            rows[label] = {"successes": r.success_count, "starts": options.starts,
+                           "wall_seconds": time.perf_counter() - t0,
                            "median_seconds_per_start": float(np.median([s.seconds for s in r.starts])),
                            "load_after": load_average(),
                            "per_start": [{"index": s.index, "relative_residual": s.relative_residual,

@@ -130,21 +130,28 @@ def test_escape_moves_keep_power_and_gauge_and_undo_themselves():
     assert min(np.max(np.abs(q - a)) for q in model.escape_moves(moves[4])) < 1e-13
 
 
+def _state_at(problem, params):
+    """A start's progress resting at ``params`` on stage 0 of ``problem``, and its evaluation there."""
+    from shspec.inverse.schedule import StartProgress
+
+    obj = problem.objective(0, params)
+    ev = obj.evaluate(obj.initial())
+    return StartProgress(0, 0, params, None, params=params, energy=ev.energy, relative_residual=ev.relative_residual,
+                         eigenvalues=ev.eigenvalues), ev
+
+
 def test_basin_hop_is_accepted_and_leaves_a_wrongly_turned_block(small):
     """A state whose degree-3 block is half-turned has the right power but the wrong spectrum; one hop returns it
     to the truth (the move back is the one of lowest energy, and its refit reaches rounding)."""
-    from shspec.inverse.schedule import FitProblem, StartProgress, _basin_hop
+    from shspec.inverse.schedule import FitProblem, _basin_hop
 
     target, model = small
     truth = blob_factor().coefficients
     wrong = model.escape_moves(truth)[3]  # the half-turn about z of the degree-3 block
     problem = FitProblem(model, target, FitOptions(starts=1, max_iter=20, schedule=(Stage(),), basin_hops=1,
                                                    hop_iter=3))
-    obj = problem.objective(0, wrong)
-    ev = obj.evaluate(obj.initial())
+    progress, ev = _state_at(problem, wrong)
     assert ev.relative_residual > 1e-4
-    progress = StartProgress(0, 0, wrong, None, params=wrong, energy=ev.energy,
-                             relative_residual=ev.relative_residual, eigenvalues=ev.eigenvalues)
     _basin_hop(problem, progress, "energy_tol")
     assert progress.relative_residual < 1e-10
     assert align(ConformalFactor(progress.params), truth).relative_error < 1e-8
@@ -440,7 +447,7 @@ def test_grid_hop_undoes_a_quarter_turn_when_the_cheap_moves_find_nothing(monkey
     """A quarter-turn about z of the degree-3 block is no product of the cheap moves (the half-turns about the axes
     and signs).  With the cheap moves exhausted (here: none), a hop without ``hop_grid`` accepts nothing; with it the
     grid's inverse quarter-turn (energy 0 before any refit, so tried first) returns to the truth."""
-    from shspec.inverse.schedule import FitProblem, StartProgress, _basin_hop
+    from shspec.inverse.schedule import FitProblem, _basin_hop
     from shspec.sphere.harmonics import degrees
     from shspec.sphere.rotate import rotate_coefficients
 
@@ -457,11 +464,8 @@ def test_grid_hop_undoes_a_quarter_turn_when_the_cheap_moves_find_nothing(monkey
     for grid in (False, True):
         problem = FitProblem(model, target, FitOptions(starts=1, max_iter=30, schedule=(Stage(),), basin_hops=2,
                                                        hop_iter=3, hop_grid=grid))
-        obj = problem.objective(0, wrong)
-        ev = obj.evaluate(obj.initial())
+        progress, ev = _state_at(problem, wrong)
         assert ev.relative_residual > 1e-3
-        progress = StartProgress(0, 0, wrong, None, params=wrong, energy=ev.energy,
-                                 relative_residual=ev.relative_residual, eigenvalues=ev.eigenvalues)
         _basin_hop(problem, progress, "energy_tol")
         ends[grid] = (progress.relative_residual, align(ConformalFactor(progress.params), truth).relative_error)
     assert ends[False][0] == ev.relative_residual
@@ -478,7 +482,7 @@ def test_hop_options_are_checked():
 def test_a_hop_refits_at_most_hop_tries_moves(small, monkeypatch):
     """At the truth (energy 0) no move can be accepted, so a hop refits exactly min(moves, hop_tries) of them."""
     from shspec.inverse import schedule as schedule_module
-    from shspec.inverse.schedule import FitProblem, StartProgress, _hop_once
+    from shspec.inverse.schedule import FitProblem, _hop_once
 
     target, model = small
     truth = blob_factor().coefficients
@@ -493,10 +497,7 @@ def test_a_hop_refits_at_most_hop_tries_moves(small, monkeypatch):
     moves = model.escape_moves(truth)
     for tries in (1, 5, len(moves) + 3):
         problem = FitProblem(model, target, FitOptions(starts=1, schedule=(Stage(),), hop_iter=1, hop_tries=tries))
-        obj = problem.objective(0, truth)
-        ev = obj.evaluate(obj.initial())
-        progress = StartProgress(0, 0, truth, None, params=truth, energy=ev.energy,
-                                 relative_residual=ev.relative_residual, eigenvalues=ev.eigenvalues)
+        progress, _ = _state_at(problem, truth)
         calls["n"] = 0
         accepted, _ = _hop_once(problem, progress, 0, moves, "residual_tol")
         assert not accepted and calls["n"] == min(tries, len(moves))

@@ -117,16 +117,16 @@ def register(subparsers) -> None:
                    help="relative eigenvalue error tolerated by --numeig auto")
     p.add_argument("--schedule", default="auto",
                    help="stages: 'auto' (the model's default: the degree ramp for harmonic fits, every stage but "
-                   "the last capped at 40 iterations, which with the default basin hops made 8 of 8 blob starts succeed; the "
-                   "numeig ramp for meshes), 'degree-ramp' (the same ramp), 'ramp' "
+                   "the last capped at 40 iterations, which with the default basin hops made 8 of 8 blob starts "
+                   "succeed; the numeig ramp for meshes), 'degree-ramp' (the same ramp), 'ramp' "
                    "(numeig 16, 36, 64, ... at full degree: 2 of 8), 'none' (one stage: 0 of 8), degrees "
                    "'2,4,8,15' or degree:numeig pairs '6:16,6:64,6:120'")
     p.add_argument("--basin-hops", type=int, default=d.basin_hops,
                    help="after the last stage, up to N accepted escape moves (harmonic fits: half-turns and sign "
                    "flips of single degree blocks, then the octahedral grid of every block, see --hop-grid) to "
                    "leave local minima; the hops end early at success or when no move helps; 0 turns them off "
-                   "(at degree 10, K = 300: 0 of 12 starts succeeded without hops, 2 of 12 with 4, 5 of 8 with 12, 6 of 8 with 12 "
-                   "and the grid)")
+                   "(at degree 10, K = 300: 0 of 12 starts succeeded without hops, 2 of 12 with 4, 5 of 8 with 12, "
+                   "6 of 8 with 12 and the grid)")
     p.add_argument("--hop-grid", action=argparse.BooleanOptionalAction, default=d.hop_grid,
                    help="when no cheap move lowers the energy, try every degree block turned through the "
                    "octahedral group (303 moves at degree 10; at most 48 refitted per hop)")
