@@ -130,14 +130,14 @@ def test_escape_moves_keep_power_and_gauge_and_undo_themselves():
     assert min(np.max(np.abs(q - a)) for q in model.escape_moves(moves[4])) < 1e-13
 
 
-def _state_at(problem, params):
-    """A start's progress resting at ``params`` on stage 0 of ``problem``, and its evaluation there."""
+def _state_at(problem, params, stage=0):
+    """A start's progress resting at ``params`` on ``stage`` of ``problem``, and its evaluation there."""
     from shspec.inverse.schedule import StartProgress
 
-    obj = problem.objective(0, params)
+    obj = problem.objective(stage, params)
     ev = obj.evaluate(obj.initial())
-    return StartProgress(0, 0, params, None, params=params, energy=ev.energy, relative_residual=ev.relative_residual,
-                         eigenvalues=ev.eigenvalues), ev
+    return StartProgress(0, stage, params, None, params=params, energy=ev.energy,
+                         relative_residual=ev.relative_residual, eigenvalues=ev.eigenvalues), ev
 
 
 def test_basin_hop_is_accepted_and_leaves_a_wrongly_turned_block(small):
@@ -348,7 +348,7 @@ def test_cli_fit_on_workers_equals_the_serial_fit(tmp_path):
 def test_orienting_a_new_block_finds_its_place_relative_to_the_lower_ones():
     """The blob truncated to degree 3 with its degree-3 block turned by a 90-degree rotation: same power, wrong
     spectrum; the orientation search after the stage that fits degree 3 turns it back."""
-    from shspec.inverse.schedule import FitProblem, StartProgress, _orient_new_block
+    from shspec.inverse.schedule import FitProblem, _orient_new_block
 
     model = HarmonicModel(10, 3)
     truth = blob_factor().truncated(3).coefficients
@@ -361,11 +361,8 @@ def test_orienting_a_new_block_finds_its_place_relative_to_the_lower_ones():
     wrong = moves[5]
     problem = FitProblem(model, target, FitOptions(starts=1, schedule=(Stage(2, 16), Stage(3, 30)), max_iter=30,
                                                    hop_iter=3, orient_blocks=True))
-    obj = problem.objective(1, wrong)
-    ev = obj.evaluate(obj.initial())
+    progress, ev = _state_at(problem, wrong, stage=1)
     assert ev.relative_residual > 1e-4
-    progress = StartProgress(0, 1, wrong, None, params=wrong, energy=ev.energy,
-                             relative_residual=ev.relative_residual, eigenvalues=ev.eigenvalues)
     _orient_new_block(problem, progress, 1)
     assert progress.relative_residual < 1e-10
     assert align(ConformalFactor(progress.params), truth).relative_error < 1e-8
