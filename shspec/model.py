@@ -123,12 +123,21 @@ class SpectralModel(ABC):
         """Levels, coarse to fine, that a stage may restrict the model to (empty: none)."""
         return ()
 
-    def restrict(self, level: int | None) -> "SpectralModel":
+    def restrict(self, level: int | None, basis: int | None = None) -> "SpectralModel":
         """The model restricted to ``level`` (None: the model itself); its parameters are a prefix of this model's
-        (see :meth:`to_level`)."""
+        (see :meth:`to_level`).  ``basis``: a coarser discretization of the same parameters, as chosen by
+        :meth:`stage_basis` (None: this model's own)."""
+        if basis is not None:
+            raise InvalidArgumentError(f"{self.describe()} has no coarser discretization (asked for {basis})")
         if level is None:
             return self
         raise InvalidArgumentError(f"{self.describe()} has no levels (a stage asked for level {level})")
+
+    def stage_basis(self, level: int | None, numeig: int, tol: float) -> int | None:
+        """The coarsest discretization (a ``basis`` for :meth:`restrict`) on which the first ``numeig`` eigenvalues
+        at ``level`` agree with this model's to ``tol`` (relative), for the stages of a fit before its last; None:
+        this model's own, the only one of models without coarser ones."""
+        return None
 
     def to_level(self, params: np.ndarray, level: int | None) -> np.ndarray:
         """The parameters of :meth:`restrict` (level) taken from full parameters (nparams,)."""

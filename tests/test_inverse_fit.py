@@ -498,3 +498,60 @@ def test_a_hop_refits_at_most_hop_tries_moves(small, monkeypatch):
         calls["n"] = 0
         accepted, _ = _hop_once(problem, progress, 0, moves, "residual_tol")
         assert not accepted and calls["n"] == min(tries, len(moves))
+
+
+def _max_relative_difference(model, a, k):
+    return lambda basis: np.max(np.abs(model.restrict(None, basis).eigenvalues(a, k)[1:]
+                                       / model.eigenvalues(a, k)[1:] - 1.0))
+
+
+def test_stage_basis_is_the_smallest_that_agrees_at_the_reference():
+    model = HarmonicModel(16, 6)
+    sub = model.restrict(4)
+    before = set(model.table._restricted)
+    lb = model.stage_basis(4, 36, 1e-5)
+    assert lb is not None and lb < 16
+    # the bisection's probes are not kept in the shared table
+    assert set(model.table._restricted) <= before | {(16, 4)}
+    differ = _max_relative_difference(sub, random_centred_coefficients(0, 4, 0.2), 36)
+    assert differ(lb) <= 1e-5 < differ(lb - 1)
+    # another ρ of the starts' law is resolved to the same order on that basis
+    assert _max_relative_difference(sub, random_centred_coefficients(5, 4, 0.2), 36)(lb) <= 1e-3
+    assert model.stage_basis(4, 36, 1e-15) is None  # only the model's own basis agrees to rounding
+    assert model.stage_basis(4, 36, 1.0) == 7  # the floor, (Lb' + 1)² ≥ 1.5 K
+
+
+def test_early_stages_run_on_their_own_basis_and_the_last_on_the_model():
+    from shspec.inverse.schedule import FitProblem
+
+    model = HarmonicModel(20, 6)
+    target = harmonic_target(blob_factor(), 20, 120)
+    problem = FitProblem(model, target, FitOptions())
+    x = problem.initial(np.random.default_rng(0))
+    assert problem.bases[-1] is None and problem.objective(len(problem.stages) - 1, x).model is model
+    assert 6 <= problem.bases[0] < 20 and problem.objective(0, x).model.lmax == problem.bases[0]
+    assert all(b is None or b < 20 for b in problem.bases)
+    assert FitProblem(model, target, FitOptions(stage_basis_tol=None)).bases == [None] * len(problem.stages)
+
+
+def test_models_without_coarser_bases_say_so():
+    from shspec.mesh.model import MeshModel
+    from shspec.mesh.shapes import icosphere
+
+    model = MeshModel(icosphere(1))
+    assert model.stage_basis(None, 10, 1e-5) is None
+    with pytest.raises(InvalidArgumentError, match="no coarser discretization"):
+        model.restrict(None, 3)
+    with pytest.raises(InvalidArgumentError, match="stage_basis_tol"):
+        FitOptions(stage_basis_tol=0.0)
+
+
+def test_cli_stage_basis_tolerance_takes_a_positive_number_or_none():
+    import argparse
+
+    from shspec.cli.fit import _optional_tol
+
+    assert _optional_tol("1e-6") == 1e-6 and _optional_tol("none") is None
+    for bad in ("0", "-1e-5", "tiny"):
+        with pytest.raises(argparse.ArgumentTypeError, match="positive tolerance or 'none'"):
+            _optional_tol(bad)

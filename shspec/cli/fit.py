@@ -130,6 +130,11 @@ def register(subparsers) -> None:
     p.add_argument("--hop-grid", action=argparse.BooleanOptionalAction, default=d.hop_grid,
                    help="when no cheap move lowers the energy, try every degree block turned through the "
                    "octahedral group (303 moves at degree 10; at most 48 refitted per hop)")
+    p.add_argument("--stage-basis-tol", type=_optional_tol, default=d.stage_basis_tol,
+                   help="harmonic fits: every stage but the last runs on the smallest basis degree on which its "
+                   "eigenvalues agree with those on --lmax to this relative tolerance at a reference rho (chosen "
+                   "once per fit, printed per stage); 'none': every stage on --lmax. The last stage and the basin "
+                   "hops always use --lmax")
     p.add_argument("--reg", type=float, default=d.reg,
                    help="regularization weight R (harmonic: R |Laplacian rho|^2; mesh: see --reg-kind)")
     p.add_argument("--reg-kind", choices=REGULARIZER_KINDS, default="dirichlet",
@@ -197,6 +202,18 @@ def _numeig(text: str):
         return int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"--numeig is an integer, 'auto' or 'all', got {text!r}") from None
+
+
+def _optional_tol(text: str):
+    if text.lower() == "none":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a positive tolerance or 'none', got {text!r}")
+    return value
 
 
 def _auto_numeig(args, target: Target) -> tuple[Target, dict]:
@@ -287,7 +304,8 @@ def _fit(args) -> int:
     options = FitOptions(optimizer=args.optimizer, weights=args.weights, reg=args.reg, area=args.area,
                          schedule=_schedule(args.schedule, target.numeig, args.lmax_factor), starts=args.starts,
                          seed=args.seed, start_amplitude=args.amplitude, max_iter=args.max_iter,
-                         basin_hops=args.basin_hops, hop_grid=args.hop_grid, checkpoint_every=args.checkpoint_every,
+                         basin_hops=args.basin_hops, hop_grid=args.hop_grid,
+                         stage_basis_tol=args.stage_basis_tol, checkpoint_every=args.checkpoint_every,
                          checkpoint_path=str(out / "checkpoint.h5") if args.checkpoint_every or args.resume else None,
                          progress=not args.quiet)
     if not args.quiet:

@@ -25,7 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
 
-from ..checks import check_int
+from ..checks import check_float, check_int
 from ..errors import BandLimitError, InvalidArgumentError, NotPositiveError, ShspecError, TruncationWarning
 from ..gaunt.cache import get_table
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
@@ -33,7 +33,7 @@ from ..model import SpectralModel, Spectrum, regularization_weight
 from ..resources import check_need, forward_need
 from ..sphere.factor import ConformalFactor, as_factor
 from ..sphere.harmonics import check_degree, degree_order, degrees, ncoeffs
-from ..sphere.random import random_coefficients
+from ..sphere.random import random_centred_coefficients, random_coefficients
 from ..sphere.rotate import power_spectrum, rotate_coefficients
 from .eigen import cold_eigh, guard_count, warm_eigh
 from .gridforms import GridQuadraticForms
@@ -303,15 +303,57 @@ class HarmonicModel(SpectralModel):
         """The factor degrees 2 … La (degree 1 is the gauge)."""
         return tuple(range(2, self.lmax_factor + 1))
 
-    def restrict(self, level: int | None) -> "HarmonicModel":
-        """The model of factor degree ``level`` ≤ La on the same basis, sharing (a restriction of) the table."""
-        if level is None or level == self.lmax_factor:
+    def restrict(self, level: int | None, basis: int | None = None) -> "HarmonicModel":
+        """The model of factor degree ``level`` ≤ La (None: La) on the basis of degree ``basis`` ≤ Lb (None: Lb),
+        sharing (a restriction of) the table."""
+        la = self.lmax_factor if level is None else check_degree(level, "level (factor degree)",
+                                                                 maximum=self.lmax_factor)
+        lb = self.lmax if basis is None else check_degree(basis, "basis degree", minimum=max(1, (la + 1) // 2),
+                                                          maximum=self.lmax)
+        if (la, lb) == (self.lmax_factor, self.lmax):
             return self
-        level = check_degree(level, "level (factor degree)", maximum=self.lmax_factor)
-        if level not in self._restricted:
-            self._restricted[level] = HarmonicModel(self.lmax, level, table=self.table,
-                                                    check_positive=self.check_positive)
-        return self._restricted[level]
+        if (la, lb) not in self._restricted:
+            self._restricted[(la, lb)] = HarmonicModel(lb, la, table=self.table, check_positive=self.check_positive)
+        return self._restricted[(la, lb)]
+
+    def stage_basis(self, level: int | None, numeig: int, tol: float) -> int | None:
+        """The smallest basis degree Lb' < Lb on which the first ``numeig`` eigenvalues of a reference ρ of degree
+        ``level`` agree with those on Lb to ``tol`` (relative), or None if only Lb does.
+
+        The reference is the planner's (:func:`~shspec.galerkin.planning.plan_numeig`): a random centred ρ (seed 0,
+        amplitude 0.2) of the law of a fit's random starts, so that the choice depends on the stage only, not on
+        the start.  Bisection from the floor (Lb' + 1)² ≥ 1.5·numeig (:func:`~shspec.galerkin.planning.
+        basis_degree_for`); the agreement grows with Lb'.  An early stage of a degree ramp matches few eigenvalues,
+        and a solve on its own basis costs a fraction of one on Lb: for the blob's degree ramp at La = 15, K = 704
+        (Lb 42) and tol 1e-5, the stage of degree 8 and 100 eigenvalues gets Lb' = 18 (361 basis functions instead
+        of 1849) and that of 400 eigenvalues Lb' = 35; choosing all 18 took about 18 s.
+        """
+        from .planning import basis_degree_for  # planning imports this module
+
+        sub = self.restrict(level)
+        la = sub.lmax_factor
+        numeig = check_int(numeig, "numeig", minimum=2)
+        tol = check_float(tol, "tol", positive=True)
+        ref = random_centred_coefficients(0, la, 0.2)
+        want = sub.eigenvalues(ref, numeig)[1:]
+
+        def agrees(lb):
+            # an unregistered table: the probes of the bisection are not kept in the shared one
+            probe = HarmonicModel(lb, la, table=self.table.restrict(lb, la, keep=False))
+            return np.max(np.abs(probe.eigenvalues(ref, numeig)[1:] / want - 1.0)) <= tol
+
+        lo, hi = basis_degree_for(numeig, la), self.lmax  # agrees(hi) holds; find the smallest that agrees
+        if lo >= hi:
+            return None
+        if agrees(lo):
+            hi = lo
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if agrees(mid):
+                hi = mid
+            else:
+                lo = mid
+        return None if hi == self.lmax else hi
 
     def enter_level(self, params: np.ndarray, old: int | None, new: int | None, rng: np.random.Generator,
                     amplitude: float) -> np.ndarray:

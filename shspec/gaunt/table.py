@@ -356,23 +356,25 @@ class GauntTable:
         """True when this table can serve the limits (Lb, La), i.e. holds at least as much."""
         return lmax <= self.lmax and lmax_factor <= self.lmax_factor
 
-    def restrict(self, lmax: int, lmax_factor: int) -> "GauntTable":
-        """The table for smaller limits (Lb, La), extracted from this one without recomputation."""
+    def restrict(self, lmax: int, lmax_factor: int, *, keep: bool = True) -> "GauntTable":
+        """The table for smaller limits (Lb, La), extracted from this one without recomputation; ``keep``: remember
+        it, so that asking again returns the same table (False for one-off probes)."""
         lmax, lmax_factor = check_limits(lmax, lmax_factor)
         if not self.covers(lmax, lmax_factor):
             raise BandLimitError(
                 f"a ({self.lmax},{self.lmax_factor}) table cannot serve ({lmax},{lmax_factor})")
         if (lmax, lmax_factor) == (self.lmax, self.lmax_factor):
             return self
-        if (lmax, lmax_factor) not in self._restricted:
-            off = _block_offsets(lmax, lmax_factor)
-            out = np.empty(int(off[lmax, lmax + 1]))
-            _restrict(_balanced_rows(off, lmax), lmax, lmax_factor, off, self.lmax_factor, self.offsets, self.values,
-                      out)
-            out.setflags(write=self.values.flags.writeable)
-            self._restricted[(lmax, lmax_factor)] = GauntTable(
-                lmax, lmax_factor, out, metadata={"restricted_from": [self.lmax, self.lmax_factor]})
-        return self._restricted[(lmax, lmax_factor)]
+        if (lmax, lmax_factor) in self._restricted:
+            return self._restricted[(lmax, lmax_factor)]
+        off = _block_offsets(lmax, lmax_factor)
+        out = np.empty(int(off[lmax, lmax + 1]))
+        _restrict(_balanced_rows(off, lmax), lmax, lmax_factor, off, self.lmax_factor, self.offsets, self.values, out)
+        out.setflags(write=self.values.flags.writeable)
+        table = GauntTable(lmax, lmax_factor, out, metadata={"restricted_from": [self.lmax, self.lmax_factor]})
+        if keep:
+            self._restricted[(lmax, lmax_factor)] = table
+        return table
 
     def mass_matrix(self, coef: np.ndarray, *, symmetrize: bool = True) -> np.ndarray:
         """M_ij = Σ_k a_k G_ijk for factor coefficients a.

@@ -101,6 +101,18 @@ class FitOptions:
         ramp for harmonic models (with 4 basin hops 7 of 8 blob starts succeeded, against 2 of 8 with
         :func:`~shspec.inverse.numeig_ramp` and none with one stage; benchmarks/results/bench_inverse.json), the
         numeig ramp for meshes.
+    stage_basis_tol : float or None
+        Every stage but the last runs on the coarsest discretization of the model on which its eigenvalues agree
+        with the model's own to this relative tolerance (:meth:`~shspec.model.SpectralModel.stage_basis`; harmonic
+        models: a smaller basis degree, chosen once per fit at a reference ρ); the last stage and the basin hops use
+        the model itself.  None: every stage on the model's own.  The stages' optima are not the truth's
+        truncations anyway (at degree 10 they end at residuals of 1e-4 … 1e-3).  For the blob at La = 15 with
+        K = 704 (Lb 42) the bases run from degree 7 (16 eigenvalues) to 40 (576), and the stages up to 400
+        eigenvalues were done 2.6 min after launch (choosing the bases, 18 s, included) against 16.5 min on Lb
+        (one start each, one core each, side by side; benchmarks/results/bench_stage_bases.json).  On small
+        bases the gain is small: the blob at Lb 20, La 6, K 120, 8 of 8 starts at a median 19 s against 23 s;
+        degree 10 at Lb 24, K 300, 4 of 8 at 244 s against 6 of 8 at 241 s (the paths differ, and which starts
+        succeed is fragile; benchmarks/results/bench_global_search.json).
     starts : int
         Number of random symmetry-broken starts.
     seed : int
@@ -172,6 +184,7 @@ class FitOptions:
     reg: float = 0.0
     area: str = "auto"
     schedule: tuple | None = None
+    stage_basis_tol: float | None = 1e-5
     starts: int = 4
     seed: int = 0
     start_amplitude: float = 0.2
@@ -207,6 +220,8 @@ class FitOptions:
         if any(b < a for a, b in zip(degrees, degrees[1:])):
             raise InvalidArgumentError(f"the stages' degrees must not decrease, got {degrees}")
         check_float(self.reg, "reg", minimum=0.0)
+        if self.stage_basis_tol is not None:
+            check_float(self.stage_basis_tol, "stage_basis_tol", positive=True)
         check_int(self.starts, "starts", minimum=1)
         check_int(self.seed, "seed", minimum=0)
         check_float(self.start_amplitude, "start_amplitude", positive=True)

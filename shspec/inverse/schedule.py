@@ -164,6 +164,15 @@ class FitProblem:
             raise InvalidArgumentError("a fixed area needs a known area or a spectrum to estimate it from")
         self.fit_area = fits_area(options, target)
         self.area = target.area_estimate()
+        # chosen here, once, at a reference: a start's path may then not depend on where the fit runs
+        tol = options.stage_basis_tol
+        self.bases = [None if tol is None or s == len(self.stages) - 1
+                      else model.stage_basis(st.lmax_factor, st.numeig or target.numeig, tol)
+                      for s, st in enumerate(self.stages)]
+        if options.progress and any(b is not None for b in self.bases):
+            print("stage bases (degree:eigenvalues -> basis degree): " + ", ".join(
+                f"{st.lmax_factor}:{st.numeig or target.numeig} -> {b}" for st, b in zip(self.stages, self.bases)
+                if b is not None), file=sys.stderr, flush=True)
 
     def level(self, s: int) -> int | None:
         """The level (harmonic models: the factor's degree) of stage s, None for the model's own."""
@@ -188,7 +197,7 @@ class FitProblem:
         st = self.stages[s]
         k = self.target.numeig if st.numeig is None else st.numeig
         lam = self.target.eigenvalues[:k]
-        sub = self.model.restrict(self.level(s))
+        sub = self.model.restrict(self.level(s), self.bases[s])
         par = Parametrization.at(self.model.to_level(params, self.level(s)), sub.free_parameters(self.fit_area),
                                  sub.transform)
         return Objective(sub, lam, eigenvalue_weights(lam, self.options.weights), par, self.options.reg)
@@ -297,8 +306,9 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
             _orient_new_block(problem, progress, s)
         params = progress.params
         if opt.progress:
+            basis = "" if problem.bases[s] is None else f", basis degree {problem.bases[s]}"
             print(f"\r  start {progress.index} stage {s} ({_level_text(obj.model, problem.level(s))}{obj.target.size} "
-                  f"eigenvalues): "
+                  f"eigenvalues{basis}): "
                   f"{progress.status} after {optimizer.iteration} iterations, max rel. residual "
                   f"{optimizer.ev.relative_residual:.3e}", file=sys.stderr, flush=True)
     if opt.basin_hops and progress.relative_residual > opt.success_tol:
