@@ -188,9 +188,13 @@ def bench_goal_blob(report, starts, workers):
     plan = plan_numeig(la, truth, noise=FitOptions().residual_tol, accuracy=1e-8)
     k, lb = (plan.numeig, plan.lmax) if plan.numeig is not None else (600, 30)
     target = harmonic_target(truth, lb, k)
-    with make_executor(workers) as ex:
-        result = fit(target, HarmonicModel(lb, la), FitOptions(starts=starts), executor=ex)
+    load = list(os.getloadavg())
+    t0 = time.perf_counter()
+    with make_executor(workers) as ex:  # progress: each stage and hop is logged on stderr as it ends
+        result = fit(target, HarmonicModel(lb, la), FitOptions(starts=starts, progress=True), executor=ex)
     report["goal_blob"] = {"setting": f"the blob at La=15, K={k}, Lb={lb}", "plan": plan.to_dict(),
+                           "workers": workers, "wall_seconds": time.perf_counter() - t0,
+                           "load_average_before_after": [load, list(os.getloadavg())],
                            **_goal_summary(result, truth, f"FitOptions(starts={starts})")}
     _save(report)
 
@@ -344,6 +348,8 @@ def main(argv=None):
     parser.add_argument("--sections", default="blob,optimizers,study,goal_degree10,goal_blob,bunny")
     parser.add_argument("--workers", type=int, default=1,
                         help="processes for the starts of the goal sections (one BLAS thread each)")
+    parser.add_argument("--starts", type=int, default=None,
+                        help="starts of the goal sections (default 4, 2 with --quick; each section records it)")
     args = parser.parse_args(argv)
     FIGURES.mkdir(parents=True, exist_ok=True)
     report = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "python": sys.version.split()[0],
@@ -365,10 +371,11 @@ def main(argv=None):
             bench_optimizers(report, 200 if args.quick else 1000)
         if "study" in sections:
             bench_study(report, 1 if args.quick else 2, args.workers)
+        goal_starts = args.starts or (2 if args.quick else 4)
         if "goal_degree10" in sections:
-            bench_goal_degree10(report, 2 if args.quick else 4, args.workers)
+            bench_goal_degree10(report, goal_starts, args.workers)
         if "goal_blob" in sections:
-            bench_goal_blob(report, 2 if args.quick else 4, args.workers)
+            bench_goal_blob(report, goal_starts, args.workers)
         if "success_by_degree" in sections:
             bench_success_by_degree(report, 2 if args.quick else 4, args.workers)
         if "bunny" in sections:
