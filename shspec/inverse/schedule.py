@@ -105,7 +105,8 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
     (benchmarks/results/bench_inverse.json).  Its stages but the last are capped at
     :data:`DEFAULT_STAGE_MAX_ITER` iterations: the same 7 of 8 on the blob in 155 s against 171 s for the 8 starts,
     and at degree 10 (K = 300) 2 of 12 with 4 hops; with the default hops (12, and the grid moves) 8 of 8 on the
-    blob and 6 of 8 at degree 10 (benchmarks/results/bench_global_search.json).
+    blob and 6 of 8 at degree 10 with every stage on the model's basis, 8 of 8 and 4 of 8 with the stages' own
+    bases (:attr:`FitOptions.stage_basis_tol`; benchmarks/results/bench_global_search.json).
     """
     levels = model.levels()
     if not levels:
