@@ -42,12 +42,13 @@ def one(mode: str) -> None:
     setup = time.perf_counter() - t0
     progress = StartProgress(0, 0, problem.initial(np.random.default_rng([options.seed, 0]), 0), None)
     result = run_start(problem, progress)
+    history = np.asarray(result.history)  # rows (stage, energy, relative residual)
+    ends = history[np.r_[np.diff(history[:, 0]) != 0, True]]
     print(json.dumps({"mode": mode, "setup_seconds": setup, "start_seconds": result.seconds,
                       "relative_residual": result.relative_residual,
                       "rho_error_after_alignment": align(model.to_factor(result.params), truth).relative_error,
                       "iterations": result.iterations, "status": result.status, "bases": problem.bases,
-                      "stage_ends": [[int(s), float(r)] for s, _, r in np.asarray(result.history)[
-                          np.r_[np.diff(np.asarray(result.history)[:, 0]) != 0, True]]]}), flush=True)
+                      "stage_ends": [[int(s), float(r)] for s, _, r in ends]}), flush=True)
 
 
 def _stage_ends(stream, launched: float, rows: list) -> None:
