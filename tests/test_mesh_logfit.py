@@ -1,5 +1,6 @@
-"""Log-factor mesh fits: the Dirichlet regularizer's square root, the gradient of the log-parametrized energy, the
-exactly representable ("cmcf") target, and a factor field spanning 1e4 recovered from its own spectrum."""
+"""Log-factor mesh fits: the Dirichlet regularizer's square root, the study's cost (cotan-squared penalty), the
+gradient of the log-parametrized energy, the exactly representable ("cmcf") target, and a factor field spanning 1e4
+recovered from its own spectrum."""
 
 from __future__ import annotations
 
@@ -47,6 +48,38 @@ def test_regularizer_kinds_give_their_forms():
     assert model.regularizer(0.0) is None
     with pytest.raises(Exception, match="reg_kind"):
         MeshModel(blob(1), reg_kind="tv")
+
+
+def test_cotan_squared_energy_is_the_studys_eigencost():
+    # eigencost.m of levincoolxyz/invspec, written out independently with a dense solve: its mass is
+    # diag(1/exp(s_study))·M, so s_study = −log c; J = ½ Σ_{i≥1} ((λ_i − λ*_i)/λ*_i)² + reg·s_studyᵀ L² s_study / 2
+    sphere = icosphere(1)
+    n = sphere.nvertices
+    model = MeshModel(sphere, transform="exp", reg_kind="cotan-squared")
+    rng = np.random.default_rng(5)
+    target = model.spectrum(np.exp(0.6 * rng.standard_normal(n)), 20).eigenvalues
+    target[0] = 0.0
+    s = 0.5 * rng.standard_normal(n)
+    reg = 0.05
+    L = cotan_stiffness(sphere).toarray()
+    m = model.vertex_areas
+    lam = np.linalg.eigvalsh((L / np.sqrt(m * np.exp(s))[:, None]) / np.sqrt(m * np.exp(s))[None, :])[:20]
+    s_study = -s
+    study = 0.5 * np.sum(((lam[1:] - target[1:]) / target[1:]) ** 2) + reg * s_study @ (L @ (L @ s_study)) / 2
+    obj = Objective(model, target, eigenvalue_weights(target), Parametrization.at(np.exp(s), np.arange(n), "exp"),
+                    reg)
+    ev = obj.evaluate(obj.initial(), jacobian=True)
+    np.testing.assert_allclose(ev.energy, study, rtol=1e-10)
+    # and the penalty alone is the squared norm of L s, R/2 ‖Ls‖², with its gradient by finite differences
+    D = model.regularizer(reg)
+    np.testing.assert_allclose(0.5 * np.sum((D @ s) ** 2), reg / 2 * np.sum((L @ s) ** 2), rtol=1e-12)
+    h = 1e-5
+    x = obj.initial()
+    for j in (0, 17, n - 1):
+        e = np.zeros(x.size)
+        e[j] = h
+        fd = (obj.evaluate(x + e).energy - obj.evaluate(x - e).energy) / (2 * h)
+        np.testing.assert_allclose(ev.gradient[j], fd, rtol=1e-6, atol=1e-10)
 
 
 def test_log_energy_gradient_with_dirichlet_matches_finite_differences():
@@ -123,7 +156,7 @@ def test_cli_fits_log_factors_with_auto_numeig_and_adaptive(tmp_path):
     auto = summary["numeig_auto"]
     assert summary["numeig"] == auto["chosen"] < auto["of"] and auto["largest_kept_error"] <= 0.05
     assert auto["first_dropped_error"] > 0.05
-    assert "exp reg=dirichlet" in summary["model"] and summary["aligned"] is False
+    assert "exp reg=cotan-squared" in summary["model"] and summary["aligned"] is False
     c = np.loadtxt(out / "factors.txt")
     assert c.shape == (42,) and c.min() == pytest.approx(summary["fitted_range"][0])
     out2 = tmp_path / "adaptive"

@@ -33,10 +33,13 @@ from .triangle_mesh import TriangleMesh
 __all__ = ["MeshModel", "REGULARIZER_KINDS", "dirichlet_root"]
 
 #: Smoothness penalties of a mesh fit on its variables u (c, or s = log c): "bilaplacian", R (Lu)ᵀ M₀⁻¹ (Lu) (the
-#: continuum R ∫ (Δu)² dA), or "dirichlet", R uᵀ L u / 2 = (R/2) ∫ |∇u|² dA, the study's reg·sᵀ(−L)s/2 with its
-#: negative semi-definite cotan L (``eigencost.m`` of levincoolxyz/invspec).  The Dirichlet form is dimensionless
-#: (the cotan weights and s are), so its R does not depend on the mesh's scale; the bi-Laplacian's scales as 1/area.
-REGULARIZER_KINDS = ("bilaplacian", "dirichlet")
+#: continuum R ∫ (Δu)² dA); "dirichlet", R uᵀ L u / 2 = (R/2) ∫ |∇u|² dA; or "cotan-squared", R ‖L u‖² / 2, the
+#: study's own penalty: ``eigencost.m`` of levincoolxyz/invspec adds reg·sᵀL²s/2 with its cotan weight matrix L
+#: (from June 2016 on, so in every version behind its figures; a version before that, Jun 2016, used the
+#: Dirichlet form reg·sᵀ(−L)s/2).  The Dirichlet and cotan-squared forms are dimensionless (the cotan weights and
+#: s are), so their R does not depend on the mesh's scale; the bi-Laplacian's scales as 1/area.  The study's R
+#: means the same here only with "cotan-squared" on a mesh of area 4π (its ``makeUnitArea(v, f)·sqrt(4π)``).
+REGULARIZER_KINDS = ("bilaplacian", "dirichlet", "cotan-squared")
 
 #: Largest ratio of two vertex masses c_j m_j for which the pencil L v = λ diag(c m) v is solved at all: at
 #: 1/ε ≈ 4.5e15 no accuracy is left.  Legitimate metrics come close: the constant start on blub_600's cMCF sphere has
@@ -266,13 +269,16 @@ class MeshModel(SpectralModel):
 
         * "bilaplacian": D = √(2R) M₀^{-1/2} L, ½‖Du‖² = R (Lu)ᵀ M₀⁻¹ (Lu) (:meth:`bilaplacian_penalty` with the
           reference vertex areas M₀), (n, n);
-        * "dirichlet": D = √R G (:func:`dirichlet_root`), ½‖Du‖² = (R/2) uᵀ L u, (2m, n).
+        * "dirichlet": D = √R G (:func:`dirichlet_root`), ½‖Du‖² = (R/2) uᵀ L u, (2m, n);
+        * "cotan-squared": D = √R L, ½‖Du‖² = (R/2) ‖L u‖², (n, n): the study's reg·sᵀL²s/2.
         """
         reg = regularization_weight(reg)
         if reg == 0:
             return None
         if self.reg_kind == "dirichlet":
             return (np.sqrt(reg) * dirichlet_root(self.mesh)).tocsr()
+        if self.reg_kind == "cotan-squared":
+            return (np.sqrt(reg) * self.stiffness).tocsr()
         return (sp.diags(np.sqrt(2 * reg / self.vertex_areas)) @ self.stiffness).tocsr()
 
     def to_factor(self, params: np.ndarray) -> ConformalFactor:
