@@ -35,7 +35,7 @@ __all__ = ["MeshModel", "REGULARIZER_KINDS", "dirichlet_root"]
 #: Smoothness penalties of a mesh fit on its variables u (c, or s = log c): "bilaplacian", R (Lu)ᵀ M₀⁻¹ (Lu) (the
 #: continuum R ∫ (Δu)² dA); "dirichlet", R uᵀ L u / 2 = (R/2) ∫ |∇u|² dA; or "cotan-squared", R ‖L u‖² / 2, the
 #: study's own penalty: ``eigencost.m`` of levincoolxyz/invspec adds reg·sᵀL²s/2 with its cotan weight matrix L
-#: (from June 2016 on, so in every version behind its figures; a version before that, Jun 2016, used the
+#: (from late June 2016 on, so in every version behind its 2017 figures; an earlier one that month used the
 #: Dirichlet form reg·sᵀ(−L)s/2).  The Dirichlet and cotan-squared forms are dimensionless (the cotan weights and
 #: s are), so their R does not depend on the mesh's scale; the bi-Laplacian's scales as 1/area.  The study's R
 #: means the same here only with "cotan-squared" on a mesh of area 4π (its ``makeUnitArea(v, f)·sqrt(4π)``).
