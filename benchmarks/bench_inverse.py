@@ -40,6 +40,7 @@ from shspec.inverse import (FitOptions, align, blob_factor, fit, harmonic_target
 from shspec.sphere.random import random_centred_coefficients  # noqa: E402
 from shspec.inverse import plots  # noqa: E402
 from shspec.mesh.figures import plot_spectra_validation, plot_vertex_factors  # noqa: E402
+from shspec.experiments.common import load_mesh_area_4pi  # noqa: E402
 from shspec.experiments.fitting import vertex_factor_errors  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -245,13 +246,6 @@ def bench_bunny(report, max_iter, numeig):
         _save(report)
 
 
-def _load_4pi(name):
-    from shspec.mesh.io import load_mesh
-
-    mesh = load_mesh(MESHES / f"{name}.obj")
-    return mesh.with_vertices(mesh.vertices * np.sqrt(4 * np.pi / mesh.area()))
-
-
 def _mesh_case(target, model, options, init=None):
     """One mesh fit: time, residual, the summary's factor errors and, for exactly representable targets, the RMS log
     error over the directions the eigenvalues determine (shspec.inverse.identifiability.determined_directions)."""
@@ -287,7 +281,7 @@ def bench_mesh_log(report, quick):
                           "constant factors (amplitude 1e-3), no schedule unless said; times are wall times on a "
                           "2-core machine shared with other engineers (approximate)"}
     report["mesh_log"] = section
-    mesh = _load_4pi("bunny_600")
+    mesh = load_mesh_area_4pi(MESHES, "bunny_600")
     tgt = {src: mesh_target(mesh, 12, k, 6, name="bunny_600", source=src) for src in ("pl", "cmcf")}
     R = 0.05
     base = FitOptions(optimizer="lm", schedule=(), starts=1, basin_hops=0, start_amplitude=1e-3,
@@ -314,7 +308,7 @@ def bench_mesh_log(report, quick):
     for name, optimizer, iters in (("bunny_1200", "lm", 60), ("bunny_1200", "lbfgs", 150), ("bunny", "lbfgs", 20)):
         if quick and name == "bunny":
             continue
-        t = mesh_target(_load_4pi(name), 12, k, 6, name=name)
+        t = mesh_target(load_mesh_area_4pi(MESHES, name), 12, k, 6, name=name)
         model = MeshModel(t.sphere, transform="exp", reg_kind="dirichlet")
         opts = FitOptions(**{**base.__dict__, "optimizer": optimizer, "reg": R, "max_iter": iters})
         section[f"{name}_{optimizer}"], _ = _mesh_case(t, model, opts)
@@ -332,7 +326,7 @@ def bench_mesh_all(report, quick):
                           "shared 2-core machine (approximate)"}
     report["mesh_all"] = section
     for name in ("bunny_600",) if quick else ("bunny_600", "bunny_1200"):
-        mesh = _load_4pi(name)
+        mesh = load_mesh_area_4pi(MESHES, name)
         t = mesh_target(mesh, 12, mesh.nvertices - 1, 6, name=name)
         for optimizer, iters in (("lm", 60), ("lbfgs", 300)):
             model = MeshModel(t.sphere, transform="exp", reg_kind="dirichlet")

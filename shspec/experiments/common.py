@@ -1,9 +1,12 @@
-"""Helpers shared by the experiments: reference factors and figure handling."""
+"""Helpers shared by the experiments: reference factors, the shared meshes and figure handling."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
+from ..mesh import TriangleMesh, load_mesh
 from ..sphere.factor import ConformalFactor
 from ..sphere.random import random_coefficients
 
@@ -21,6 +24,13 @@ def centred_random_factor(lmax_factor: int, amplitude: float, seed: int) -> Conf
     rho = ConformalFactor(a, name=f"random(La={lmax_factor}, seed={seed})")
     rho.check_positive()
     return rho
+
+
+def load_mesh_area_4pi(mesh_dir, name: str) -> TriangleMesh:
+    """``mesh_dir/name.obj`` scaled to area 4π, so that its mean conformal factor over a unit sphere is 1 (the
+    study's ``makeUnitArea(v, f)·sqrt(4π)``)."""
+    mesh = load_mesh(Path(mesh_dir) / f"{name}.obj")
+    return mesh.with_vertices(mesh.vertices * np.sqrt(4 * np.pi / mesh.area()))
 
 
 def figure(rows: int, cols: int, width: float = 12, height: float | None = None):
