@@ -3,11 +3,10 @@ recursive fit (Section 3.2.3, Figure 2), the exactly representable target and th
 
 Each run ``"MESH:R"`` loads ``MESH.obj`` from ``mesh_dir``, scales it to area 4π (the mean factor is then 1), takes
 its cotan spectrum (its first K = ``numeig_fraction``·n eigenvalues, target (a); the study's own runs used 95 % of
-them, "e0.95" in its figure names: K = 570 for 600 vertices, 1140 for 1200) and fits log factors s = log c on its own cMCF sphere with the study's penalty
-R ‖Ls‖²/2 (``reg_kind="cotan-squared"``, the form of ``eigencost.m`` behind its figures: dimensionless, so the
-study's R = 0.05 means the same here; ``"dirichlet"`` gives the earlier runs' R sᵀLs/2).  The fit and the cMCF
-factors are compared vertex by vertex through
-log c (RMS of log(c/c*), Pearson correlation over the vertices, unweighted and area weighted) and re-embedded
+them, "e0.95" in its figure names: K = 570 for 600 vertices, 1140 for 1200) and fits log factors s = log c on its
+own cMCF sphere with the study's penalty R ‖Ls‖²/2 (``reg_kind="cotan-squared"``, the form of ``eigencost.m``
+behind its figures: dimensionless, so the study's R = 0.05 means the same here; ``"dirichlet"`` gives the earlier
+runs' R sᵀLs/2).  The fit and the cMCF factors are compared vertex by vertex through log c (RMS of log(c/c*), Pearson correlation over the vertices, unweighted and area weighted) and re-embedded
 (:func:`shspec.embed.embed`) for the Hausdorff distance to the mesh, over its bounding diagonal.
 
 For the first run also: target (b), the spectrum of the cMCF sphere carrying the cMCF factors (exactly
@@ -181,7 +180,8 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         f"the cotan eigenvalues, "
         f"one start from the constant factors on the mesh's own cMCF sphere, {cfg['optimizer']}, at most "
         f"{cfg['max_iter']} iterations): "
-        + "; ".join(f"{r['run']} (K = {r['numeig']}): residual {r['relative_residual']:.2e}, fitted {r['fitted_min']:.2g}..{r['fitted_max']:.2g}"
+        + "; ".join(f"{r['run']} (K = {r['numeig']}): residual {r['relative_residual']:.2e}, fitted "
+                    f"{r['fitted_min']:.2g}..{r['fitted_max']:.2g}"
                     f" against cMCF {r['cmcf_min']:.2g}..{r['cmcf_max']:.2g}, log RMS {r['log_rms']:.2f}, log "
                     f"correlation {r['log_correlation']:.2f} (area weighted {r['log_correlation_area_weighted']:.2f}), "
                     f"re-embedded at Hausdorff {r['embedded_hausdorff']:.3f} of the diagonal (cMCF factors "
