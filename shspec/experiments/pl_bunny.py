@@ -6,8 +6,9 @@ its cotan spectrum (its first K = ``numeig_fraction``·n eigenvalues, target (a)
 them, "e0.95" in its figure names: K = 570 for 600 vertices, 1140 for 1200) and fits log factors s = log c on its
 own cMCF sphere with the study's penalty R ‖Ls‖²/2 (``reg_kind="cotan-squared"``, the form of ``eigencost.m``
 behind its figures: dimensionless, so the study's R = 0.05 means the same here; ``"dirichlet"`` gives the earlier
-runs' R sᵀLs/2).  The fit and the cMCF factors are compared vertex by vertex through log c (RMS of log(c/c*), Pearson correlation over the vertices, unweighted and area weighted) and re-embedded
-(:func:`shspec.embed.embed`) for the Hausdorff distance to the mesh, over its bounding diagonal.
+runs' R sᵀLs/2).  The fit and the cMCF factors are compared vertex by vertex through log c (RMS of log(c/c*),
+Pearson correlation over the vertices, unweighted and area weighted) and re-embedded (:func:`shspec.embed.embed`)
+for the Hausdorff distance to the mesh, over its bounding diagonal.
 
 For the first run also: target (b), the spectrum of the cMCF sphere carrying the cMCF factors (exactly
 representable), fitted along a regularization path down to R = 0, with the RMS log error over the directions the
