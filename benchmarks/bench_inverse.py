@@ -46,7 +46,7 @@ from shspec.experiments.fitting import vertex_factor_errors  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "results" / "bench_inverse.json"
 FIGURES = ROOT / "docs" / "figures"
-MESHES = Path("/work/shared/data/meshes")
+MESHES = ROOT.parent / "shared" / "data" / "meshes"
 
 
 def _starts(result):

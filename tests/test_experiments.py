@@ -123,6 +123,16 @@ def test_config_override_and_errors(tmp_path):
         run_experiment("nope", tmp_path / "y")
     with pytest.raises(InvalidArgumentError, match="not an experiment folder"):
         build_report([tmp_path / "x"], tmp_path / "r.html")
+    for name in ("pl-bunny", "pl-basin"):  # the shared meshes are looked for beside the checkout unless told
+        missing = tmp_path / f"{name}.toml"
+        missing.write_text(f"mesh_dir = '{tmp_path / 'no_meshes'}'\n")
+        with pytest.raises(InvalidArgumentError, match="mesh_dir .* is not a directory"):
+            run_experiment(name, tmp_path / name, config_path=missing, quick=True, progress=False)
+    for text, match in (("perturbations = ['pink']", "'white' or 'smooth:L'"), ("sizes = [0.1, -1.0]", "positive")):
+        bad = tmp_path / "basin.toml"
+        bad.write_text(text + "\n")
+        with pytest.raises(InvalidArgumentError, match=match):
+            run_experiment("pl-basin", tmp_path / "basin", config_path=bad, quick=True, progress=False)
 
 
 def test_report_tables_scroll_instead_of_overflowing(runs, tmp_path):

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import InvalidArgumentError
 from ..mesh import TriangleMesh, load_mesh
 from ..sphere.factor import ConformalFactor
 from ..sphere.random import random_coefficients
@@ -26,9 +27,25 @@ def centred_random_factor(lmax_factor: int, amplitude: float, seed: int) -> Conf
     return rho
 
 
+#: Where the experiments look for the shared test meshes by default: the project's checkout sits beside ``shared``
+#: (a relative path, read from the working directory, as the README's commands are run from the checkout).
+MESH_DIR = "../shared/data/meshes"
+
+
 def load_mesh_area_4pi(mesh_dir, name: str) -> TriangleMesh:
     """``mesh_dir/name.obj`` scaled to area 4π, so that its mean conformal factor over a unit sphere is 1 (the
-    study's ``makeUnitArea(v, f)·sqrt(4π)``)."""
+    study's ``makeUnitArea(v, f)·sqrt(4π)``).
+
+    Raises
+    ------
+    InvalidArgumentError
+        If ``mesh_dir`` is not a directory (the experiments' ``mesh_dir`` setting names it).
+    MeshError
+        If the mesh is missing or invalid.
+    """
+    if not Path(mesh_dir).is_dir():
+        raise InvalidArgumentError(f"mesh_dir {str(mesh_dir)!r} is not a directory (from {Path.cwd()}); run from "
+                                   f"the checkout beside 'shared', or set mesh_dir in a config file (--config)")
     mesh = load_mesh(Path(mesh_dir) / f"{name}.obj")
     return mesh.with_vertices(mesh.vertices * np.sqrt(4 * np.pi / mesh.area()))
 

@@ -25,7 +25,7 @@ from ..mesh import MeshModel
 from ..sphere.evaluate import sample_harmonic
 from ..sphere.random import random_coefficients
 from .base import Experiment, Finding, register
-from .common import figure, load_mesh_area_4pi, save_figure
+from .common import MESH_DIR, figure, load_mesh_area_4pi, save_figure
 from .fitting import Progress, single_threaded, write_h5
 
 #: A start counts as converged when its largest relative eigenvalue residual ends below this.
@@ -59,7 +59,9 @@ def _rms_residual(eigenvalues, target) -> float:
 def run(cfg: dict, out, progress: bool) -> Finding:
     k, kinds, sizes = cfg["numeig"], cfg["perturbations"], cfg["sizes"]
     for kind in kinds:
-        _degree(kind)  # a bad name fails before the minutes of work
+        _degree(kind)  # bad settings fail before the minutes of work
+    if not sizes or not all(isinstance(e, (int, float)) and e > 0 for e in sizes):
+        raise InvalidArgumentError(f"pl-basin sizes must be positive RMS log errors, got {sizes!r}")
     bar = Progress(progress, 1 + len(kinds) * len(sizes), "pl-basin")
     options = FitOptions(schedule=(), starts=1, basin_hops=0, reg=0.0, optimizer="lm", max_iter=cfg["max_iter"],
                          seed=cfg["seed"])
@@ -164,9 +166,9 @@ register(Experiment(
     name="pl-basin", title="The basin of an exactly representable mesh target: how close a local fit must start",
     reproduces="the question behind the study's Section 3.2.2 (why its regularized fits stop short of the cMCF "
                "factors); issue 13's target (b)",
-    defaults={"mesh": "bunny_600", "mesh_dir": "/work/shared/data/meshes", "numeig": 570,
+    defaults={"mesh": "bunny_600", "mesh_dir": MESH_DIR, "numeig": 570,
               "perturbations": ["white", "smooth:4", "smooth:12"], "sizes": [1e-4, 1e-3, 1e-2, 3e-2, 1e-1],
               "max_iter": 100, "seed": 0},
-    quick={"mesh": "bunny_600", "mesh_dir": "/work/shared/data/meshes", "numeig": 60,
+    quick={"mesh": "bunny_600", "mesh_dir": MESH_DIR, "numeig": 60,
            "perturbations": ["white"], "sizes": [1e-4, 1e-1], "max_iter": 20, "seed": 0},
     expected_minutes=8.0, run=run))

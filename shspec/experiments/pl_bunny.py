@@ -32,7 +32,7 @@ from ..mesh import MeshModel, plot_hammer
 from ..pipeline.adaptive import AdaptiveOptions, adaptive_fit
 from ..pipeline.recursive import RecursiveOptions, recursive_fit
 from .base import Experiment, Finding, register
-from .common import load_mesh_area_4pi, save_figure
+from .common import MESH_DIR, load_mesh_area_4pi, save_figure
 from .fitting import Progress, single_threaded, vertex_factor_errors, write_h5
 
 
@@ -205,11 +205,11 @@ register(Experiment(
     reproduces="the study's Sections 3.2.2 (regularized fit, Figure 1, R = 0.05) and 3.2.3 (recursive fit, Figure "
                "2, R = 0.1), and its open problem A.5 (adaptive refinement)",
     defaults={"runs": ["bunny_600:0.05", "spot_600:0.05", "blub_600:0.05", "bunny_600:0.001", "bunny_1200:0.05"],
-              "mesh_dir": "/work/shared/data/meshes",
+              "mesh_dir": MESH_DIR,
               "numeig_fraction": 0.95, "reg_kind": "cotan-squared", "max_iter": 300, "optimizer": "lbfgs", "seed": 0,
               "path": [1.0, 0.1, 0.01, 0.001, 0.0001],
               "recursive_reg": 0.1, "adaptive_subdivisions": 2, "embed_iterations": 100, "distance_samples": 5000},
-    quick={"runs": ["bunny_600:0.05"], "mesh_dir": "/work/shared/data/meshes", "numeig_fraction": 0.02,
+    quick={"runs": ["bunny_600:0.05"], "mesh_dir": MESH_DIR, "numeig_fraction": 0.02,
            "reg_kind": "cotan-squared", "max_iter": 5,
            "optimizer": "lbfgs", "seed": 0, "path": [0.05], "recursive_reg": 0.1, "adaptive_subdivisions": 2,
            "embed_iterations": 10, "distance_samples": 500},
