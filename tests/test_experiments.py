@@ -152,4 +152,4 @@ def test_pl_basin_converges_quadratically_next_to_the_truth(runs):
     # a start 1e-4 from the truth comes back to within (1e-4)² times a curvature: 1.5e-8 measured
     assert float(near["log_rms_determined"]) < 1e-2 * float(near["start_log_rms"])
     numbers = json.loads((runs / "pl-basin" / "meta.json").read_text())["numbers"]
-    assert numbers["determined_directions"] == 59  # K = 60 eigenvalues, λ₀ = 0 carries none
+    assert numbers["per_numeig"]["60"]["determined_directions"] == 59  # K = 60 eigenvalues, λ₀ = 0 carries none
