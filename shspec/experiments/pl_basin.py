@@ -198,4 +198,4 @@ register(Experiment(
               "max_iter": 100, "seed": 0},
     quick={"mesh": "bunny_600", "mesh_dir": MESH_DIR, "numeig_values": [60],
            "perturbations": ["white"], "sizes": [1e-4, 1e-1], "max_iter": 20, "seed": 0},
-    expected_minutes=10.0, run=run))
+    expected_minutes=4.0, run=run))

@@ -213,4 +213,4 @@ register(Experiment(
            "reg_kind": "cotan-squared", "max_iter": 5,
            "optimizer": "lbfgs", "seed": 0, "path": [0.05], "recursive_reg": 0.1, "adaptive_subdivisions": 2,
            "embed_iterations": 10, "distance_samples": 500},
-    expected_minutes=8.0, run=run))
+    expected_minutes=5.0, run=run))
