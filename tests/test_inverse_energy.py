@@ -9,7 +9,7 @@ from shspec import HarmonicModel
 from shspec.errors import InvalidArgumentError, NotPositiveError
 from shspec.sphere.harmonics import degrees
 from shspec.sphere.random import random_centred_coefficients
-from shspec.inverse.energy import Objective, eigenvalue_weights, relative_residual
+from shspec.inverse.energy import Objective, eigenvalue_weights, relative_residual, rms_relative_residual
 from shspec.inverse.parametrization import Parametrization
 from shspec.mesh.model import MeshModel
 from shspec.mesh.shapes import icosphere
@@ -82,6 +82,10 @@ def test_weights_and_relative_residual():
     np.testing.assert_allclose(eigenvalue_weights(lam), [0, 0.25, 1 / 16])
     np.testing.assert_allclose(eigenvalue_weights(lam, "absolute"), [0, 1, 1])
     assert relative_residual([0, 2.2, 4.0], lam) == pytest.approx(0.1)
+    # relative errors 0.1 and 0.05 (λ₀ carries none): RMS √((0.01 + 0.0025)/2)
+    assert rms_relative_residual([0, 2.2, 3.8], lam) == pytest.approx(np.sqrt(0.00625))
+    with pytest.raises(InvalidArgumentError, match="different shapes"):
+        rms_relative_residual([0, 2.2], lam)
     with pytest.raises(InvalidArgumentError):
         eigenvalue_weights(lam, "squared")
     with pytest.raises(InvalidArgumentError):

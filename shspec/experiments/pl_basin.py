@@ -20,7 +20,7 @@ import numpy as np
 
 from ..errors import InvalidArgumentError
 from ..inverse import FitOptions, fit, mesh_target
-from ..inverse.energy import relative_residual
+from ..inverse.energy import relative_residual, rms_relative_residual
 from ..inverse.identifiability import determined_directions
 from ..mesh import MeshModel
 from ..sphere.evaluate import sample_harmonic
@@ -51,10 +51,6 @@ def _perturbation(kind: str, rng: np.random.Generator, sphere) -> np.ndarray:
         z = sample_harmonic(random_coefficients(rng, degree, 1.0), sphere.vertices)
     z = z - z.mean()
     return z / np.sqrt(np.mean(z * z))
-
-
-def _rms_residual(eigenvalues, target) -> float:
-    return float(np.sqrt(np.mean((eigenvalues[1:] / target[1:] - 1.0) ** 2)))
 
 
 def _gaps(lam: np.ndarray) -> np.ndarray:
@@ -119,7 +115,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
                                  "start_beyond_gap": int(np.sum(shift > near)),
                                  "start_relative_residual": relative_residual(lam0, lam_star),
                                  "relative_residual": best.relative_residual,
-                                 "rms_residual": _rms_residual(best.eigenvalues, lam_star),
+                                 "rms_residual": rms_relative_residual(best.eigenvalues, lam_star),
                                  "converged": bool(best.relative_residual <= CONVERGED),
                                  "log_rms": float(np.sqrt(np.mean(d * d))), "log_rms_determined": det,
                                  "iterations": best.iterations, "status": best.status, "cpu_s": cpu})

@@ -18,7 +18,7 @@ from ..errors import InvalidArgumentError
 from ..model import SpectralModel, Spectrum
 from .parametrization import Parametrization
 
-__all__ = ["eigenvalue_weights", "relative_residual", "Evaluation", "Objective"]
+__all__ = ["eigenvalue_weights", "relative_residual", "rms_relative_residual", "Evaluation", "Objective"]
 
 
 def eigenvalue_weights(target, kind: str = "relative") -> np.ndarray:
@@ -51,13 +51,23 @@ def eigenvalue_weights(target, kind: str = "relative") -> np.ndarray:
     return w
 
 
-def relative_residual(eigenvalues, target) -> float:
-    """max_{i≥1} |λ_i − λ*_i| / λ*_i of two (k,) arrays."""
+def _relative_errors(eigenvalues, target) -> np.ndarray:
+    """|λ_i − λ*_i| / λ*_i for i ≥ 1 of two (k,) arrays, (k − 1,)."""
     lam = np.asarray(eigenvalues, dtype=float)
     ref = np.asarray(target, dtype=float)
     if lam.shape != ref.shape or lam.size < 2:
         raise InvalidArgumentError(f"eigenvalue arrays of different shapes {lam.shape} and {ref.shape}")
-    return float(np.max(np.abs(lam[1:] - ref[1:]) / np.abs(ref[1:])))
+    return np.abs(lam[1:] - ref[1:]) / np.abs(ref[1:])
+
+
+def relative_residual(eigenvalues, target) -> float:
+    """max_{i≥1} |λ_i − λ*_i| / λ*_i of two (k,) arrays."""
+    return float(np.max(_relative_errors(eigenvalues, target)))
+
+
+def rms_relative_residual(eigenvalues, target) -> float:
+    """RMS over i ≥ 1 of (λ_i − λ*_i) / λ*_i of two (k,) arrays."""
+    return float(np.sqrt(np.mean(_relative_errors(eigenvalues, target) ** 2)))
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ from ..checks import check_int, check_options
 from ..mesh.cotan import vertex_areas
 from ..errors import InvalidArgumentError
 from ..inverse import FitOptions, Target, fit
+from ..inverse.energy import rms_relative_residual
 from ..mesh.cmcf import cmcf
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.model import MeshModel
@@ -175,7 +176,7 @@ def recursive_fit(target, sphere: TriangleMesh | None = None, options: Recursive
         c = base * np.asarray(best.params, dtype=float)
         emb = embed(sphere, c, opt.embed)
         lam = mesh_spectrum(emb.mesh, k, whole_multiplets=False).eigenvalues
-        spec = float(np.sqrt(np.mean((lam[1:] / lam_star[1:] - 1.0) ** 2)))
+        spec = rms_relative_residual(lam, lam_star)
         haus = cham = None
         if isinstance(target.mesh, TriangleMesh):
             d = surface_distance(emb.mesh, target.mesh)
