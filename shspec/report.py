@@ -117,10 +117,19 @@ def markdown_table(rows: list[dict]) -> list[str]:
 
 
 def experiment_markdown(name: str, title: str, reproduces: str, quick: bool, seconds: float, version: str,
-                        finding: str, figures, tables: dict, config: dict) -> str:
-    """The ``report.md`` of an experiment run: its finding, figures, tables and parameters."""
+                        finding: str, figures, tables: dict, config: dict, cpu_seconds: float | None = None,
+                        load: tuple | None = None) -> str:
+    """The ``report.md`` of an experiment run: its finding, figures, tables and parameters.
+
+    ``cpu_seconds`` (the process's CPU time) and ``load`` (the 1-minute load average before and after the run) are
+    shown beside the wall time when given: on a shared machine the wall time alone says little."""
+    timing = f"{seconds:.1f} s"
+    if cpu_seconds is not None:
+        timing += f" ({cpu_seconds:.1f} s CPU)"
+    if load is not None and None not in load:
+        timing += f", load {load[0][0]:.2f} before and {load[1][0]:.2f} after"
     lines = [f"# {title}", "", f"*Reproduces:* {reproduces}. *Run:* `shspec experiment {name}"
-             f"{' --quick' if quick else ''}`, {seconds:.1f} s, shspec {version}.", "", "## Finding", "", finding, ""]
+             f"{' --quick' if quick else ''}`, {timing}, shspec {version}.", "", "## Finding", "", finding, ""]
     for fig in figures:
         lines += [f"![{fig}]({fig})", ""]
     for table, rows in tables.items():

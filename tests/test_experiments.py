@@ -30,6 +30,8 @@ def test_quick_run_writes_its_folder(runs, name):
         assert (folder / f).is_file()
     meta = json.loads((folder / "meta.json").read_text())
     assert meta["quick"] and meta["experiment"] == name
+    # the run's CPU time and the load around it are recorded (Linux has a load average)
+    assert 0 < meta["cpu_seconds"] and len(meta["load_average_start"]) == len(meta["load_average_end"]) == 3
     report = (folder / "report.md").read_text()
     finding = report.split("## Finding", 1)[1].strip().split("\n\n")[0]
     # a finding states its result with numbers (not boilerplate): several measured values appear in it

@@ -2,12 +2,15 @@
 
 An experiment is a function ``run(config, out, progress) -> Finding`` registered with :func:`register`.  The runner
 merges its defaults (or its ``--quick`` preset) with a user's TOML file, writes ``config.json``, calls it, and writes
-``report.md`` (the finding in one paragraph with its numbers, tables, figures) and ``meta.json`` (versions, time).
+``report.md`` (the finding in one paragraph with its numbers, tables, figures) and ``meta.json`` (versions, wall and
+CPU time, and the machine's load average before and after, without which a time on a shared machine cannot be
+judged).
 """
 
 from __future__ import annotations
 
 import json
+import os
 import platform
 import shutil
 import time
@@ -94,6 +97,18 @@ def _merge(base: dict, override: dict, name: str) -> dict:
     return out
 
 
+#: Environment variables that set the threads of BLAS and numba, recorded with every run.
+_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+def _load_average() -> list | None:
+    """The 1, 5 and 15 minute load averages, None where the system has none."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        return None
+
+
 def run_experiment(name: str, out, *, config_path=None, quick: bool = False, progress: bool = True) -> Path:
     """Run experiment ``name`` into the folder ``out``; returns the path of its ``report.md``."""
     if name not in EXPERIMENTS:
@@ -109,19 +124,23 @@ def run_experiment(name: str, out, *, config_path=None, quick: bool = False, pro
     if progress:
         print(f"{name}: {exp.title}; expected run time about "
               f"{'under a minute' if quick else f'{exp.expected_minutes:g} minutes'}")
-    start = time.perf_counter()
+    load_start = _load_average()
+    start, cpu = time.perf_counter(), time.process_time()
     finding = exp.run(config, out, progress)
-    seconds = time.perf_counter() - start
+    seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     for table, rows in finding.tables.items():
         if rows:
             write_csv(out / f"{table}.csv", rows)
     meta = {"experiment": name, "title": exp.title, "reproduces": exp.reproduces, "quick": quick,
-            "seconds": seconds, "shspec_version": __version__, "numpy": np.__version__,
+            "seconds": seconds, "cpu_seconds": cpu, "cpu_count": os.cpu_count(),
+            "load_average_start": load_start, "load_average_end": _load_average(),
+            "threads": {v: os.environ.get(v) for v in _THREAD_VARIABLES}, "shspec_version": __version__, "numpy": np.__version__,
             "python": platform.python_version(), "machine": platform.platform(),
             "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"), "numbers": finding.numbers}
     (out / "meta.json").write_text(json.dumps(meta, indent=1, default=float))
     text = experiment_markdown(name, exp.title, exp.reproduces, quick, seconds, __version__, finding.summary,
-                               finding.figures, finding.tables, config)
+                               finding.figures, finding.tables, config, cpu_seconds=cpu,
+                               load=(meta["load_average_start"], meta["load_average_end"]))
     report = out / "report.md"
     report.write_text(text)
     if progress:
