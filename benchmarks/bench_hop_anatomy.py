@@ -1,0 +1,100 @@
+"""Where a degree-10 start spends its time: the degree ramp, its last stage, and each basin hop.
+
+The degree-10 goal of the harmonic inverse (random centred ρ of seed 1, La 10, Lb 24, 300 eigenvalues; ≥ 3 of 4
+starts, median ≤ 2 minutes per start) misses its time by about a factor of two (bench_global_search.json).  This
+script runs 8 starts of the library's defaults (the capped degree ramp on the stages' own bases, 12 basin hops with
+the octahedral grid moves) and 8 of the same with every stage on the model's basis, and records for each start the
+time to the end of the stages and, for every round of moves (one call of ``shspec.inverse.schedule._hop_once``:
+the cheap moves of a hop, or the grid moves it tries after them), the moves screened, its time, whether a move was
+accepted and the energy before and after.  The rounds are timed by wrapping ``_hop_once`` inside each worker; the
+fit itself is unchanged.
+
+The starts run on a pool of two processes (spawned) with one BLAS/numba thread each; the load average is recorded.
+
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 python benchmarks/bench_hop_anatomy.py
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from common import load_average, machine_info, main_with_only, threads  # noqa: E402
+
+LA, LB, K, STARTS = 10, 24, 300, 8
+VARIANTS = {"defaults": {}, "full_basis": {"stage_basis_tol": None}}
+
+
+def _problem(variant: str):
+    from shspec import HarmonicModel
+    from shspec.inverse import FitOptions, harmonic_target
+    from shspec.inverse.schedule import FitProblem
+    from shspec.sphere.random import random_centred_coefficients
+
+    truth = random_centred_coefficients(1, LA, 0.2)
+    model = HarmonicModel(LB, LA)
+    return FitProblem(model, harmonic_target(truth, LB, K), FitOptions(starts=STARTS, **VARIANTS[variant])), truth
+
+
+def run_one(variant: str, index: int) -> dict:
+    """One start of ``variant`` with its hops timed (runs in a worker process)."""
+    import shspec.inverse.schedule as schedule
+    from shspec.inverse import align
+    from shspec.inverse.schedule import StartProgress, run_start
+
+    hops, t0 = [], time.perf_counter()
+    plain = schedule._hop_once
+
+    def timed(problem, progress, s, moves, status):
+        if not hops:
+            hops.append({"stages_end_seconds": time.perf_counter() - t0})
+        t, before = time.perf_counter(), progress.energy
+        accepted, status = plain(problem, progress, s, moves, status)
+        hops.append({"moves": len(moves), "seconds": time.perf_counter() - t, "accepted": bool(accepted),
+                     "energy_before": float(before), "energy_after": float(progress.energy)})
+        return accepted, status
+
+    schedule._hop_once = timed
+    with threads(1):
+        problem, truth = _problem(variant)
+        t0 = time.perf_counter()
+        rng = np.random.default_rng([problem.options.seed, index])
+        r = run_start(problem, StartProgress(index, 0, problem.initial(rng, index), None))
+    stages_end = hops.pop(0)["stages_end_seconds"] if hops else r.seconds
+    return {"index": index, "success": r.success, "relative_residual": r.relative_residual,
+            "rho_error_after_alignment": align(problem.model.to_factor(r.params), truth).relative_error,
+            "iterations": r.iterations, "seconds": r.seconds, "stages_seconds": stages_end,
+            "hops_seconds": float(sum(h["seconds"] for h in hops)), "hops": hops}
+
+
+def run(only: str | None) -> dict:
+    out = {"machine": machine_info(), "load_before": load_average(), "case": f"random degree {LA} (Lb {LB}, K {K})",
+           "variants": {}}
+    for variant in VARIANTS:
+        if only and only not in variant:
+            continue
+        t0 = time.perf_counter()
+        with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
+            starts = list(pool.map(run_one, [variant] * STARTS, range(STARTS)))
+        secs = [s["seconds"] for s in starts]
+        out["variants"][variant] = {
+            "successes": sum(s["success"] for s in starts), "starts": STARTS, "wall_seconds": time.perf_counter() - t0,
+            "median_seconds_per_start": float(np.median(secs)),
+            "median_stages_seconds": float(np.median([s["stages_seconds"] for s in starts])),
+            "median_hops_seconds": float(np.median([s["hops_seconds"] for s in starts])),
+            "failed_hop_seconds": [h["seconds"] for s in starts for h in s["hops"] if not h["accepted"]],
+            "load_after": load_average(), "per_start": starts}
+        print(variant, out["variants"][variant]["successes"], "/", STARTS, flush=True)
+    out["load_after"] = load_average()
+    return out
+
+
+if __name__ == "__main__":
+    main_with_only(__doc__, "bench_hop_anatomy.json", run)
