@@ -134,8 +134,8 @@ def run_experiment(name: str, out, *, config_path=None, quick: bool = False, pro
     meta = {"experiment": name, "title": exp.title, "reproduces": exp.reproduces, "quick": quick,
             "seconds": seconds, "cpu_seconds": cpu, "cpu_count": os.cpu_count(),
             "load_average_start": load_start, "load_average_end": _load_average(),
-            "threads": {v: os.environ.get(v) for v in _THREAD_VARIABLES}, "shspec_version": __version__, "numpy": np.__version__,
-            "python": platform.python_version(), "machine": platform.platform(),
+            "threads": {v: os.environ.get(v) for v in _THREAD_VARIABLES}, "shspec_version": __version__,
+            "numpy": np.__version__, "python": platform.python_version(), "machine": platform.platform(),
             "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"), "numbers": finding.numbers}
     (out / "meta.json").write_text(json.dumps(meta, indent=1, default=float))
     text = experiment_markdown(name, exp.title, exp.reproduces, quick, seconds, __version__, finding.summary,
