@@ -23,6 +23,8 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from shspec.resources import load_average  # noqa: F401  (the benchmarks record it beside their timings)
+
 try:
     import psutil
 except ImportError:  # pragma: no cover - listed in the bench extra
@@ -51,13 +53,6 @@ def cpu_model() -> str:
     except OSError:
         pass
     return platform.processor() or "unknown"
-
-
-def load_average() -> list[float] | None:
-    try:
-        return [round(x, 2) for x in os.getloadavg()]
-    except OSError:
-        return None
 
 
 def git_commit() -> str | None:

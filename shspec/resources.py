@@ -16,7 +16,8 @@ from pathlib import Path
 
 from .errors import ResourceLimitError
 
-__all__ = ["Need", "available_memory", "free_disk", "forward_need", "table_need", "check_need", "human_bytes"]
+__all__ = ["Need", "available_memory", "free_disk", "load_average", "forward_need", "table_need", "check_need",
+           "human_bytes"]
 
 #: Fraction of the available memory a computation may plan to use (the rest: Python, BLAS workspaces, the OS).
 MEMORY_FRACTION = 0.9
@@ -34,6 +35,15 @@ def available_memory() -> int | None:
     try:
         return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
     except (ValueError, OSError, AttributeError):
+        return None
+
+
+def load_average() -> list[float] | None:
+    """The machine's 1, 5 and 15 minute load averages (rounded to 0.01), or None where the system has none: recorded
+    beside every timing, since a time from a shared machine cannot be judged without it."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except OSError:
         return None
 
 

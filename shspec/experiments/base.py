@@ -26,6 +26,7 @@ from .._version import __version__
 from ..errors import InvalidArgumentError
 from ..io import ensure_directory, write_csv
 from ..report import experiment_markdown
+from ..resources import load_average
 
 __all__ = ["Experiment", "Finding", "EXPERIMENTS", "register", "run_experiment", "load_config"]
 
@@ -101,14 +102,6 @@ def _merge(base: dict, override: dict, name: str) -> dict:
 _THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 
 
-def _load_average() -> list | None:
-    """The 1, 5 and 15 minute load averages, None where the system has none."""
-    try:
-        return [round(x, 2) for x in os.getloadavg()]
-    except OSError:
-        return None
-
-
 def run_experiment(name: str, out, *, config_path=None, quick: bool = False, progress: bool = True) -> Path:
     """Run experiment ``name`` into the folder ``out``; returns the path of its ``report.md``."""
     if name not in EXPERIMENTS:
@@ -124,7 +117,7 @@ def run_experiment(name: str, out, *, config_path=None, quick: bool = False, pro
     if progress:
         print(f"{name}: {exp.title}; expected run time about "
               f"{'under a minute' if quick else f'{exp.expected_minutes:g} minutes'}")
-    load_start = _load_average()
+    load_start = load_average()
     start, cpu = time.perf_counter(), time.process_time()
     finding = exp.run(config, out, progress)
     seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
@@ -133,7 +126,7 @@ def run_experiment(name: str, out, *, config_path=None, quick: bool = False, pro
             write_csv(out / f"{table}.csv", rows)
     meta = {"experiment": name, "title": exp.title, "reproduces": exp.reproduces, "quick": quick,
             "seconds": seconds, "cpu_seconds": cpu, "cpu_count": os.cpu_count(),
-            "load_average_start": load_start, "load_average_end": _load_average(),
+            "load_average_start": load_start, "load_average_end": load_average(),
             "threads": {v: os.environ.get(v) for v in _THREAD_VARIABLES}, "shspec_version": __version__,
             "numpy": np.__version__, "python": platform.python_version(), "machine": platform.platform(),
             "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"), "numbers": finding.numbers}
