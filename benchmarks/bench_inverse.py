@@ -274,6 +274,7 @@ def bench_mesh_log(report, quick):
     """Log-factor PL fits (Dirichlet R, the study's): bunny_600 on its own cMCF sphere, targets (a) pl and (b) cmcf;
     LM against L-BFGS and linear factors; the adaptive fit from an icosphere; 1200 and 8000 vertices."""
     from shspec.mesh.model import MeshModel
+    from shspec.mesh.cmcf import cmcf
     from shspec.pipeline.adaptive import AdaptiveOptions, adaptive_fit
 
     k = 40 if quick else 100
@@ -282,7 +283,8 @@ def bench_mesh_log(report, quick):
                           "2-core machine shared with other engineers (approximate)"}
     report["mesh_log"] = section
     mesh = load_mesh_area_4pi(MESHES, "bunny_600")
-    tgt = {src: mesh_target(mesh, 12, k, 6, name="bunny_600", source=src) for src in ("pl", "cmcf")}
+    flow = cmcf(mesh)
+    tgt = {src: mesh_target(mesh, 12, k, 6, name="bunny_600", source=src, flow=flow) for src in ("pl", "cmcf")}
     R = 0.05
     base = FitOptions(optimizer="lm", schedule=(), starts=1, basin_hops=0, start_amplitude=1e-3,
                       max_iter=30 if quick else 150)

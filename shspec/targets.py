@@ -24,7 +24,7 @@ from .checks import check_int
 from .errors import InvalidArgumentError
 from .galerkin.solver import HarmonicModel
 from .mesh.bridge import fit_harmonic, mesh_band_limit
-from .mesh.cmcf import cmcf
+from .mesh.cmcf import CMCFResult, cmcf
 from .mesh.cotan import cotan_stiffness, vertex_areas
 from .mesh.eigen import eigenpairs, mesh_spectrum
 from .mesh.io import load_mesh
@@ -141,7 +141,7 @@ def harmonic_target(rho, lmax: int, numeig: int, *, name: str | None = None) -> 
 
 
 def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str = "pl", name: str = "mesh",
-                ) -> Target:
+                flow: CMCFResult | None = None) -> Target:
     """A target from a triangle mesh: cMCF gives the true factors; the spectrum is PL or harmonic.
 
     Parameters
@@ -156,12 +156,27 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
         Degree La of the harmonic expansion of the cMCF factors (the harmonic truth).
     source : {"pl", "cmcf", "harmonic"}
         See :data:`TARGET_SOURCES`.
+    name : str
+    flow : CMCFResult, optional
+        The mesh's cMCF (:func:`~shspec.mesh.cmcf.cmcf`) when the caller has it already (several targets of one
+        mesh); None: computed here.
+
+    Raises
+    ------
+    InvalidArgumentError
+        If ``mesh`` is not a TriangleMesh, ``source`` is unknown, or ``flow`` is not a CMCFResult of this mesh's
+        faces.
     """
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
     if source not in TARGET_SOURCES:
         raise InvalidArgumentError(f"source must be one of {TARGET_SOURCES}, got {source!r}")
-    flow = cmcf(mesh)
+    if flow is None:
+        flow = cmcf(mesh)
+    elif not isinstance(flow, CMCFResult):
+        raise InvalidArgumentError(f"flow must be a CMCFResult, got {type(flow).__name__}")
+    elif flow.sphere.faces.shape != mesh.faces.shape or not np.array_equal(flow.sphere.faces, mesh.faces):
+        raise InvalidArgumentError("flow is the cMCF of another mesh: its faces differ from the mesh's")
     la = mesh_band_limit(mesh.nvertices, lmax_factor)
     truth = ConformalFactor(fit_harmonic(flow.sphere, flow.factors, la).coefficients, name=f"{name} (cMCF)")
     if source in ("pl", "cmcf"):

@@ -7,10 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from shspec.errors import InvalidArgumentError
 from shspec.inverse import FitOptions, fit
 from shspec.inverse.identifiability import determined_directions
 from shspec.inverse.energy import Objective, eigenvalue_weights
 from shspec.inverse.parametrization import Parametrization
+from shspec.mesh.cmcf import cmcf
 from shspec.mesh.cotan import cotan_stiffness
 from shspec.mesh.model import MeshModel, dirichlet_root
 from shspec.mesh.shapes import blob, icosphere
@@ -109,6 +111,18 @@ def test_cmcf_target_is_the_sphere_carrying_the_cmcf_factors():
     assert t.source == "cmcf" and t.eigenvalues[0] == 0.0
     pl = mesh_target(blob(1), 8, 10, 3, source="pl")
     assert np.max(np.abs(pl.eigenvalues[1:] / t.eigenvalues[1:] - 1)) > 1e-4  # a different spectrum
+
+
+def test_mesh_target_takes_the_meshs_own_flow_and_refuses_another():
+    mesh = blob(1)
+    flow = cmcf(mesh)
+    given = mesh_target(mesh, 8, 10, 3, source="cmcf", flow=flow)
+    assert given.sphere is flow.sphere and given.factors is flow.factors
+    np.testing.assert_array_equal(given.eigenvalues, mesh_target(mesh, 8, 10, 3, source="cmcf").eigenvalues)
+    with pytest.raises(InvalidArgumentError, match="faces differ"):
+        mesh_target(mesh, 8, 10, 3, flow=cmcf(blob(2)))
+    with pytest.raises(InvalidArgumentError, match="CMCFResult"):
+        mesh_target(mesh, 8, 10, 3, flow=flow.sphere)
 
 
 def test_factors_spanning_1e4_recovered_from_their_own_spectrum():

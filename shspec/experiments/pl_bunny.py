@@ -28,6 +28,7 @@ from ..embed import EmbedOptions, embed, render_mesh, surface_distance
 from ..errors import InvalidArgumentError
 from ..inverse import FitOptions, fit, mesh_target
 from ..inverse.identifiability import determined_directions
+from ..mesh.cmcf import cmcf
 from ..mesh import MeshModel, plot_hammer
 from ..pipeline.adaptive import AdaptiveOptions, adaptive_fit
 from ..pipeline.recursive import RecursiveOptions, recursive_fit
@@ -73,7 +74,8 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         for i, (name, reg) in enumerate(runs):
             mesh = load_mesh_area_4pi(cfg["mesh_dir"], name)
             k = max(2, int(round(cfg["numeig_fraction"] * mesh.nvertices)))
-            target = mesh_target(mesh, 12, k, 6, name=name)
+            flow = cmcf(mesh)
+            target = mesh_target(mesh, 12, k, 6, name=name, flow=flow)
             model = MeshModel(target.sphere, transform="exp", reg_kind=cfg["reg_kind"])
             t0 = time.process_time()
             result = fit(target, model, _options(cfg, reg))
@@ -95,11 +97,11 @@ def run(cfg: dict, out, progress: bool) -> Finding:
                                        "cmcf_factors": target.factors, "fitted_factors": best.params,
                                        "target_eigenvalues": target.eigenvalues}
             if i == 0:
-                first = (name, reg, mesh, target, k)
+                first = (name, reg, mesh, target, flow, k)
 
-        name, reg, mesh, first_target, k = first
+        name, reg, mesh, first_target, flow, k = first
         # (b) the exactly representable target, along a regularization path ending at R = 0
-        tb = mesh_target(mesh, 12, k, 6, name=name, source="cmcf")
+        tb = mesh_target(mesh, 12, k, 6, name=name, source="cmcf", flow=flow)
         model = MeshModel(tb.sphere, transform="exp", reg_kind=cfg["reg_kind"])
         c, t0 = None, time.process_time()
         for r in cfg["path"]:
