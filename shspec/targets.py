@@ -157,6 +157,7 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
     source : {"pl", "cmcf", "harmonic"}
         See :data:`TARGET_SOURCES`.
     name : str
+        Name of the target (and of its truth, "NAME (cMCF)").
     flow : CMCFResult, optional
         The mesh's cMCF (:func:`~shspec.mesh.cmcf.cmcf`) when the caller has it already (several targets of one
         mesh); None: computed here.
@@ -175,7 +176,7 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
         flow = cmcf(mesh)
     elif not isinstance(flow, CMCFResult):
         raise InvalidArgumentError(f"flow must be a CMCFResult, got {type(flow).__name__}")
-    elif flow.sphere.faces.shape != mesh.faces.shape or not np.array_equal(flow.sphere.faces, mesh.faces):
+    elif not np.array_equal(flow.sphere.faces, mesh.faces):
         raise InvalidArgumentError("flow is the cMCF of another mesh: its faces differ from the mesh's")
     la = mesh_band_limit(mesh.nvertices, lmax_factor)
     truth = ConformalFactor(fit_harmonic(flow.sphere, flow.factors, la).coefficients, name=f"{name} (cMCF)")

@@ -178,7 +178,7 @@ def detect_ambiguity(sphere: TriangleMesh, result: EmbedResult, options: Ambigui
     sphere = check_sphere(sphere)
     if not isinstance(result, EmbedResult):
         raise InvalidArgumentError(f"result must be an EmbedResult, got {type(result).__name__}")
-    if result.mesh.faces.shape != sphere.faces.shape or not np.array_equal(result.mesh.faces, sphere.faces):
+    if not np.array_equal(result.mesh.faces, sphere.faces):
         raise InvalidArgumentError("result was not computed on this sphere mesh (faces differ)")
     mesh = result.mesh
     caps, _, _ = _caps(mesh, result.edges, opt)

@@ -95,7 +95,7 @@ def rigid_align(surface: TriangleMesh, target: TriangleMesh, *, reflection: bool
     """
     if not isinstance(surface, TriangleMesh) or not isinstance(target, TriangleMesh):
         raise InvalidArgumentError("surface and target must be TriangleMesh objects")
-    if surface.faces.shape == target.faces.shape and np.array_equal(surface.faces, target.faces):
+    if np.array_equal(surface.faces, target.faces):
         T, _, _ = trimesh.registration.procrustes(surface.vertices, target.vertices, reflection=reflection,
                                                   scale=False)
         return np.asarray(T), True

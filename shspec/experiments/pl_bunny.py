@@ -28,8 +28,7 @@ from ..embed import EmbedOptions, embed, render_mesh, surface_distance
 from ..errors import InvalidArgumentError
 from ..inverse import FitOptions, fit, mesh_target
 from ..inverse.identifiability import determined_directions
-from ..mesh.cmcf import cmcf
-from ..mesh import MeshModel, plot_hammer
+from ..mesh import MeshModel, cmcf, plot_hammer
 from ..pipeline.adaptive import AdaptiveOptions, adaptive_fit
 from ..pipeline.recursive import RecursiveOptions, recursive_fit
 from .base import Experiment, Finding, register
