@@ -80,6 +80,13 @@ class SpectralModel(ABC):
         evaluation).  A model may use it to warm-start its eigensolver, but the result must be the one of a cold
         solve to the solver's accuracy; models may ignore it (:class:`~shspec.mesh.MeshModel` does)."""
 
+    def eigenvalues(self, params: np.ndarray, k: int) -> np.ndarray:
+        """The first k eigenvalues (k,) alone, equal to :meth:`spectrum`'s to the solver's accuracy: what an
+        evaluation needs when it wants the energy only (the probe of a geodesic acceleration, the screening of a
+        basin hop's moves).  Default: :meth:`spectrum`'s; a model overrides it where the eigenvalues come cheaper
+        without the eigenvectors (:class:`~shspec.galerkin.HarmonicModel`: about half the time)."""
+        return self.spectrum(params, k).eigenvalues
+
     @abstractmethod
     def contract(self, spec: Spectrum, coef: np.ndarray) -> np.ndarray:
         """Σ_i coef_i ∂λ_i/∂p, shape (nparams,), for coef of shape (k,): the adjoint gradient in one pass."""

@@ -27,10 +27,20 @@ def _factor(rng, la, amp=0.1):
 
 
 def _assert_derivatives(obj, x, columns, gradient_atol):
-    """Gauss–Newton's identity g = Jᵀr at x, and the gradient and the Jacobian's ``columns`` against central
-    differences (step 1e-6); returns the evaluation at x."""
+    """Gauss–Newton's identity g = Jᵀr at x (the gradient of an evaluation without the Jacobian comes from the
+    model's one-pass contraction, with it from the Jacobian), the energy and residuals of the eigenvalues alone
+    (:meth:`Objective.values`), and the gradient and the Jacobian's ``columns`` against central differences
+    (step 1e-6); returns the evaluation at x."""
     ev = obj.evaluate(x, jacobian=True)
-    np.testing.assert_allclose(ev.jacobian.T @ ev.residuals, ev.gradient, rtol=1e-9, atol=1e-14)
+    plain = obj.evaluate(x)
+    assert plain.jacobian is None
+    np.testing.assert_allclose(ev.jacobian.T @ ev.residuals, plain.gradient, rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(ev.gradient, plain.gradient, rtol=1e-9, atol=1e-14)
+    values = obj.values(x)
+    assert values.gradient is None and values.jacobian is None
+    np.testing.assert_allclose(values.residuals, ev.residuals, rtol=1e-10, atol=1e-14)
+    assert values.energy == pytest.approx(ev.energy, rel=1e-10)
+    assert values.relative_residual == pytest.approx(ev.relative_residual, rel=1e-8, abs=1e-15)
     h = 1e-6
     for j in columns:
         e = np.zeros_like(x)

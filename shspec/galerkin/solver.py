@@ -199,7 +199,8 @@ class HarmonicModel(SpectralModel):
 
     def eigenvalues(self, params, k: int) -> np.ndarray:
         """The first k eigenvalues (k,) alone, as :meth:`spectrum` gives them cold; about half its time without the
-        eigenvectors (what the truncation estimate of :func:`spectrum` needs)."""
+        eigenvectors (what the truncation estimate of :func:`spectrum`, the probe of LM's geodesic acceleration and
+        the screening of basin-hop moves need)."""
         a, k, m = self._mass(params, k)
         vals = np.zeros(k)
         if k > 1:

@@ -79,8 +79,8 @@ class Evaluation:
     energy : float
     residuals : (k + nreg,) array
         r = [√w (λ − λ*); D p].
-    gradient : (nfree,) array
-        ∂E/∂x over the free parameters.
+    gradient : (nfree,) array or None
+        ∂E/∂x over the free parameters (None from :meth:`Objective.values`).
     jacobian : (k + nreg, nfree) array or None
         ∂r/∂x, when asked for.
     eigenvalues : (k,) array
@@ -90,7 +90,7 @@ class Evaluation:
 
     energy: float
     residuals: np.ndarray
-    gradient: np.ndarray
+    gradient: np.ndarray | None
     jacobian: np.ndarray | None
     eigenvalues: np.ndarray
     relative_residual: float
@@ -159,16 +159,31 @@ class Objective:
         self.evaluations += 1
         lam = spec.eigenvalues
         diff = lam - self.target
-        res = self.sqrt_w * diff
-        grad = par.pullback(x, self.model.contract(spec, self.weights * diff))
         jac = None
         if jacobian:
-            jac = self.sqrt_w[:, None] * par.pullback(x, self.model.jacobian(spec))
+            # the gradient is then Jᵀ w (λ − λ*): one pass over the eigenvectors instead of two
+            dlam = self.model.jacobian(spec)
+            grad = par.pullback(x, (self.weights * diff) @ dlam)
+            jac = self.sqrt_w[:, None] * par.pullback(x, dlam)
+        else:
+            grad = par.pullback(x, self.model.contract(spec, self.weights * diff))
+        return self._finish(x, lam, np.asarray(grad), jac)
+
+    def values(self, x) -> Evaluation:
+        """Energy and residuals alone at free values x (nfree,), from the model's eigenvalues without eigenvectors
+        (:meth:`~shspec.model.SpectralModel.eigenvalues`); ``gradient`` and ``jacobian`` are None."""
+        lam = self.model.eigenvalues(self.parametrization.params(x), self.target.size)
+        self.evaluations += 1
+        return self._finish(x, lam, None, None)
+
+    def _finish(self, x, lam: np.ndarray, grad, jac) -> Evaluation:
+        """The evaluation at x of eigenvalues ``lam`` (k,), with the regularizer's residuals and derivatives."""
+        res = self.sqrt_w * (lam - self.target)
         if self.reg_matrix is not None:
-            du = self.reg_matrix @ par.variables(x)
-            grad = grad + self._reg_free.T @ du
+            du = self.reg_matrix @ self.parametrization.variables(x)
             res = np.concatenate([res, du])
-            if jacobian:
+            if grad is not None:
+                grad = grad + self._reg_free.T @ du
+            if jac is not None:
                 jac = np.vstack([jac, self._reg_free.toarray()])
-        return Evaluation(0.5 * float(res @ res), res, np.asarray(grad), jac, lam,
-                          relative_residual(lam, self.target))
+        return Evaluation(0.5 * float(res @ res), res, grad, jac, lam, relative_residual(lam, self.target))

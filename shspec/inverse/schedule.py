@@ -363,7 +363,7 @@ def _hop_once(problem: FitProblem, progress: StartProgress, s: int, moves: list,
     def energy(q):
         try:
             obj = problem.objective(s, q)
-            return obj.evaluate(obj.initial()).energy
+            return obj.values(obj.initial()).energy
         except NotPositiveError:
             return np.inf
 
