@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -342,16 +342,18 @@ def _level_text(model: SpectralModel, level: int | None) -> str:
 def _hop_once(problem: FitProblem, progress: StartProgress, s: int, moves: list, status: str) -> tuple[bool, str]:
     """Try ``moves`` (parameter vectors) from the state in ``progress`` with the objective of stage s: the
     ``hop_tries`` of lowest energy before any refit (one eigensolve each), in that order, each refitted for
-    ``hop_iter`` iterations; the first that ends below the current energy is refitted to convergence and accepted
+    ``hop_iter`` iterations of plain LM; the first that ends below the current energy is refitted to convergence and accepted
     into ``progress``.  Deterministic.
 
     Returns (accepted, status of the last refit or ``status``)."""
     opt = problem.options
+    # the short screening refits gain nothing measurable from the acceleration's extra solve (FitOptions.hop_iter)
+    screening = replace(opt, lm_acceleration=False)
 
-    def run(params, iters):
+    def run(params, iters, options):
         try:
             obj = problem.objective(s, params)
-            optimizer = make_optimizer(problem.optimizer, obj, obj.initial(), opt)
+            optimizer = make_optimizer(problem.optimizer, obj, obj.initial(), options)
         except NotPositiveError:  # a move that leaves ρ non-positive
             return None
         hist = []
@@ -371,12 +373,12 @@ def _hop_once(problem: FitProblem, progress: StartProgress, s: int, moves: list,
     for k in np.argsort(energies, kind="stable")[:opt.hop_tries]:
         if not np.isfinite(energies[k]):
             break
-        out = run(moves[k], opt.hop_iter)
+        out = run(moves[k], opt.hop_iter, screening)
         if out is None or out[0].ev.energy >= progress.energy:
             continue
         optimizer, obj, hist = out
         q = problem.merge(s, moves[k], obj, optimizer.x)
-        full = run(q, problem.stages[s].max_iter or opt.max_iter)
+        full = run(q, problem.stages[s].max_iter or opt.max_iter, opt)
         optimizer, obj, hist2 = full
         progress.history.extend(hist + hist2)
         progress.params = problem.merge(s, q, obj, optimizer.x)
