@@ -150,10 +150,10 @@ class LevenbergMarquardt(_Optimizer):
     a condition number that reaches 1e9 at the study's setting (La = 15, 256 eigenvalues).
 
     Geodesic acceleration (``FitOptions.lm_acceleration``): the second directional derivative r_vv is taken by a
-    finite difference along v (one extra solve, of the eigenvalues alone), a = −D⁻¹ V S(S² + μ)⁻¹ Uᵀ r_vv, and the step is v + a/2
-    when 2‖Da‖ ≤ α‖Dv‖ (α = 0.75), else v alone.  Near the solutions of these fits the residual depends on the weak
-    directions more at second order than at first, so the linear model alone gains a few per cent per iteration
-    there.  M. K. Transtrum, J. P. Sethna, "Improvements to the Levenberg–Marquardt algorithm for nonlinear
+    finite difference along v (one extra solve, of the eigenvalues alone), a = −D⁻¹ V S(S² + μ)⁻¹ Uᵀ r_vv, and the
+    step is v + a/2 when 2‖Da‖ ≤ α‖Dv‖ (α = 0.75), else v alone.  Near the solutions of these fits the residual
+    depends on the weak directions more at second order than at first, so the linear model alone gains a few per
+    cent per iteration there.  M. K. Transtrum, J. P. Sethna, "Improvements to the Levenberg–Marquardt algorithm for nonlinear
     least-squares minimization", arXiv:1201.5885 (2012).
     """
 

@@ -134,10 +134,10 @@ class FitOptions:
         Initial Levenberg–Marquardt damping μ (relative to diag(JᵀJ)); large values make the first steps short
         gradient-like steps.
     lm_acceleration : bool
-        Levenberg–Marquardt adds the geodesic acceleration of each step (Transtrum & Sethna): one extra forward
-        solve per trial, and the fit follows curved valleys where the linear model alone crawls.  On the blob at
-        La = 15 from 1e-3 off the truth (benchmarks/results/bench_convergence.json) it took the relative residual
-        to 3e-15 in 28 iterations at K = 600 (Lb 40), where plain LM was at 3e-9 after 60.
+        Levenberg–Marquardt adds the geodesic acceleration of each step (Transtrum & Sethna): one extra solve per
+        trial, of the eigenvalues alone, and the fit follows curved valleys where the linear model alone crawls.
+        On the blob at La = 15 from 1e-3 off the truth (benchmarks/results/bench_convergence.json) it took the
+        relative residual to 3e-15 in 28 iterations at K = 600 (Lb 40), where plain LM was at 3e-9 after 60.
     basin_hops : int
         After the last stage, while the relative residual is above success_tol, up to this many basin hops (0:
         none).  A hop first tries the model's cheap moves (power-preserving moves of one degree block: half-turns
