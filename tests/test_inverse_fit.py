@@ -476,6 +476,30 @@ def test_hop_options_are_checked():
         FitOptions(hop_grid="yes")
 
 
+def test_hop_screens_with_plain_lm_and_refits_the_accepted_move_with_acceleration(small, monkeypatch):
+    """The short refits of the moves run without the geodesic acceleration (FitOptions.hop_iter); the accepted
+    move's refit to convergence runs with the options as given."""
+    from shspec.inverse import schedule as schedule_module
+    from shspec.inverse.schedule import FitProblem, _hop_once
+
+    target, model = small
+    truth = blob_factor().coefficients
+    wrong = model.escape_moves(truth)[3]  # the half-turn about z of the degree-3 block
+    seen = []
+    original = schedule_module.make_optimizer
+
+    def recording(name, objective, x0, options, state=None):
+        seen.append(options.lm_acceleration)
+        return original(name, objective, x0, options, state)
+
+    monkeypatch.setattr(schedule_module, "make_optimizer", recording)
+    problem = FitProblem(model, target, FitOptions(starts=1, max_iter=20, schedule=(Stage(),), hop_iter=3))
+    progress, _ = _state_at(problem, wrong)
+    accepted, _ = _hop_once(problem, progress, 0, model.escape_moves(wrong), "energy_tol")
+    assert accepted and progress.relative_residual < 1e-10
+    assert seen[-1] is True and seen[:-1] and not any(seen[:-1])
+
+
 def test_a_hop_refits_at_most_hop_tries_moves(small, monkeypatch):
     """At the truth (energy 0) no move can be accepted, so a hop refits exactly min(moves, hop_tries) of them."""
     from shspec.inverse import schedule as schedule_module
