@@ -113,7 +113,8 @@ class FitOptions:
         bases the gain is small: the blob at Lb 20, La 6, K 120, 8 of 8 starts at a median 19 s against 23 s;
         degree 10 at Lb 24, K 300, 4 of 8 at 244 s against 6 of 8 at 241 s, measured again 5 of 8 at 262 s
         against 5 of 8 at 270 s (the stages themselves 29 s against 46 s; the paths differ, and which starts
-        succeed is fragile; benchmarks/results/bench_global_search.json, bench_hop_anatomy.json).
+        succeed is fragile; benchmarks/results/bench_global_search.json, bench_hop_anatomy.json of commit
+        ecb52d3, before the hops screened with plain LM).
     starts : int
         Number of random symmetry-broken starts.
     seed : int
