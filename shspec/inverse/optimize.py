@@ -89,11 +89,8 @@ class _Optimizer:
 
     # -- iteration ------------------------------------------------------------------------------------------------
 
-    def _try(self, x, jacobian: bool = False, values_only: bool = False) -> Evaluation | None:
-        """The evaluation at x (only energy and residuals with ``values_only``), None where x is not a metric."""
+    def _try(self, x, jacobian: bool = False) -> Evaluation | None:
         try:
-            if values_only:
-                return self.objective.values(x)
             return self.objective.evaluate(x, jacobian=jacobian)
         except NotPositiveError:
             return None
@@ -153,8 +150,8 @@ class LevenbergMarquardt(_Optimizer):
     finite difference along v (one extra solve, of the eigenvalues alone), a = −D⁻¹ V S(S² + μ)⁻¹ Uᵀ r_vv, and the
     step is v + a/2 when 2‖Da‖ ≤ α‖Dv‖ (α = 0.75), else v alone.  Near the solutions of these fits the residual
     depends on the weak directions more at second order than at first, so the linear model alone gains a few per
-    cent per iteration there.  M. K. Transtrum, J. P. Sethna, "Improvements to the Levenberg–Marquardt algorithm for nonlinear
-    least-squares minimization", arXiv:1201.5885 (2012).
+    cent per iteration there.  M. K. Transtrum, J. P. Sethna, "Improvements to the Levenberg–Marquardt algorithm
+    for nonlinear least-squares minimization", arXiv:1201.5885 (2012).
     """
 
     name = "lm"
@@ -179,8 +176,9 @@ class LevenbergMarquardt(_Optimizer):
         """a for velocity v (J v = jv), the damped solve of the current μ and column scale d, or None where it does not
         apply (a trial that is not a metric, or an acceleration too large for the second-order model)."""
         h = self._FD_STEP
-        trial = self._try(self.x + h * v, values_only=True)
-        if trial is None:
+        try:
+            trial = self.objective.values(self.x + h * v)  # only its residuals are needed
+        except NotPositiveError:
             return None
         rvv = (2.0 / h) * ((trial.residuals - self.ev.residuals) / h - jv)
         a = solve(rvv)

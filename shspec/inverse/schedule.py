@@ -342,8 +342,8 @@ def _level_text(model: SpectralModel, level: int | None) -> str:
 def _hop_once(problem: FitProblem, progress: StartProgress, s: int, moves: list, status: str) -> tuple[bool, str]:
     """Try ``moves`` (parameter vectors) from the state in ``progress`` with the objective of stage s: the
     ``hop_tries`` of lowest energy before any refit (one eigensolve each), in that order, each refitted for
-    ``hop_iter`` iterations of plain LM; the first that ends below the current energy is refitted to convergence and accepted
-    into ``progress``.  Deterministic.
+    ``hop_iter`` iterations (LM without the geodesic acceleration); the first that ends below the current energy is
+    refitted to convergence with the options as given and accepted into ``progress``.  Deterministic.
 
     Returns (accepted, status of the last refit or ``status``)."""
     opt = problem.options
