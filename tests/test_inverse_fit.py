@@ -239,17 +239,18 @@ def test_cli_degree_ramp_with_basin_hops(tmp_path):
     from shspec.inverse.schedule import DEFAULT_STAGE_MAX_ITER
 
     assert main(["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "1",
-                 "--max-iter", "5", "--schedule", "degree-ramp", "--basin-hops", "1", "--out", str(tmp_path),
-                 "--quiet"]) == 0
+                 "--max-iter", "5", "--schedule", "degree-ramp", "--basin-hops", "1", "--hop-tries", "7",
+                 "--out", str(tmp_path), "--quiet"]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     stages = [(s["lmax_factor"], s["numeig"]) for s in summary["options"]["schedule"]]
     assert stages == [(s.lmax_factor, s.numeig) for s in degree_ramp(20, 6)]
-    assert summary["options"]["basin_hops"] == 1
+    assert summary["options"]["basin_hops"] == 1 and summary["options"]["hop_tries"] == 7
     history = load_result_summary(tmp_path / "result.h5")["starts"][0].history
     assert sorted(set(history[:, 0].astype(int))) == list(range(len(stages)))  # every stage ran
     # the command line's default schedule is the library's
     assert default_schedule(HarmonicModel(8, 6), 20) == degree_ramp(20, 6, stage_max_iter=DEFAULT_STAGE_MAX_ITER)
     assert FitOptions().schedule is None and FitOptions().basin_hops == 12 and FitOptions().hop_grid
+    assert FitOptions().hop_tries == 144
 
 
 def test_cli_mesh_fit_with_default_schedule(tmp_path):
