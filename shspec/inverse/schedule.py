@@ -81,8 +81,8 @@ def degree_ramp(numeig: int, lmax_factor: int, stage_max_iter: int | None = None
         cut to their degree or eigenvalue count (the higher degrees move the low eigenvalues too), so converging
         them buys little.  At degree 10 (Lb 24, K = 300) with 4 basin hops, capping them at 40 iterations gave 2
         of 12 successes at a median 116 s per start (benchmarks/results/bench_global_search.json), where the
-        uncapped ramp had given 0 of 4 at a median 163 s (``goal_degree10`` in bench_inverse.json of commit c0e95a5); on the blob
-        (La 6, K 120) 7 of 8 either way.
+        uncapped ramp had given 0 of 4 at a median 163 s (``goal_degree10`` in bench_inverse.json of commit
+        c0e95a5); on the blob (La 6, K 120) 7 of 8 either way.
     """
     numeig, lmax_factor = check_int(numeig, "numeig", minimum=2), check_int(lmax_factor, "lmax_factor", minimum=2)
     stage_max_iter = check_int(stage_max_iter, "stage_max_iter", allow_none=True, minimum=1)
