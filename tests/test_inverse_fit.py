@@ -239,18 +239,20 @@ def test_cli_degree_ramp_with_basin_hops(tmp_path):
     from shspec.inverse.schedule import DEFAULT_STAGE_MAX_ITER
 
     assert main(["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "1",
-                 "--max-iter", "5", "--schedule", "degree-ramp", "--basin-hops", "1", "--hop-tries", "7",
+                 "--max-iter", "5", "--schedule", "degree-ramp", "--basin-hops", "1", "--hop-tries", "7", "--hop-extend", "20",
                  "--out", str(tmp_path), "--quiet"]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     stages = [(s["lmax_factor"], s["numeig"]) for s in summary["options"]["schedule"]]
     assert stages == [(s.lmax_factor, s.numeig) for s in degree_ramp(20, 6)]
     assert summary["options"]["basin_hops"] == 1 and summary["options"]["hop_tries"] == 7
+    assert summary["options"]["hop_extend"] == 20
     history = load_result_summary(tmp_path / "result.h5")["starts"][0].history
     assert sorted(set(history[:, 0].astype(int))) == list(range(len(stages)))  # every stage ran
     # the command line's default schedule is the library's
     assert default_schedule(HarmonicModel(8, 6), 20) == degree_ramp(20, 6, stage_max_iter=DEFAULT_STAGE_MAX_ITER)
     assert FitOptions().schedule is None and FitOptions().basin_hops == 12 and FitOptions().hop_grid
     assert FitOptions().hop_tries == 144
+    assert FitOptions().hop_extend == 45
 
 
 def test_cli_mesh_fit_with_default_schedule(tmp_path):
@@ -473,6 +475,8 @@ def test_grid_hop_undoes_a_quarter_turn_when_the_cheap_moves_find_nothing(monkey
 def test_hop_options_are_checked():
     with pytest.raises(InvalidArgumentError, match="hop_tries"):
         FitOptions(hop_tries=0)
+    with pytest.raises(InvalidArgumentError, match="hop_extend"):
+        FitOptions(hop_iter=15, hop_extend=10)
     with pytest.raises(InvalidArgumentError, match="hop_grid must be a bool"):
         FitOptions(hop_grid="yes")
 
@@ -523,6 +527,54 @@ def test_a_hop_refits_at_most_hop_tries_moves(small, monkeypatch):
         calls["n"] = 0
         accepted, _ = _hop_once(problem, progress, 0, moves, "residual_tol")
         assert not accepted and calls["n"] == min(tries, len(moves))
+
+
+def test_a_hop_extends_only_the_refits_still_falling_above_the_energy(small, monkeypatch):
+    """A screening refit goes past hop_iter only while its energy is at or above the state's and fell by
+    _FALLING over the last _FALLING_SPAN iterations, and never past hop_extend."""
+    from shspec.inverse import schedule as schedule_module
+    from shspec.inverse.schedule import _FALLING, _FALLING_SPAN, FitProblem, _hop_once
+
+    target, model = small
+    truth = blob_factor().coefficients  # energy 0: no move is accepted, and every refit is screened to its end
+    traces = []
+    original = schedule_module.make_optimizer
+
+    def tracing(name, objective, x0, options, state=None):
+        optimizer = original(name, objective, x0, options, state)
+        trace = [optimizer.ev.energy]
+        step = optimizer.step
+
+        def traced_step():
+            step()
+            trace.append(optimizer.ev.energy)
+
+        optimizer.step = traced_step
+        if not options.lm_acceleration:  # a screening refit, not the accepted move's refit to convergence
+            traces.append((optimizer, trace))
+        return optimizer
+
+    monkeypatch.setattr(schedule_module, "make_optimizer", tracing)
+    longest = {}
+    for extend in (2, 12):
+        traces.clear()
+        problem = FitProblem(model, target, FitOptions(starts=1, max_iter=20, schedule=(Stage(),), hop_iter=2,
+                                                       hop_extend=extend))
+        progress, _ = _state_at(problem, truth)
+        energy = progress.energy
+        assert not _hop_once(problem, progress, 0, model.escape_moves(truth), "residual_tol")[0]
+
+        def falling(t, i):
+            return energy <= t[i] <= (1.0 - _FALLING) * t[max(i - _FALLING_SPAN, 0)]
+
+        for optimizer, t in traces:
+            iterations = len(t) - 1
+            assert iterations <= extend
+            assert all(falling(t, i) for i in range(2, iterations))  # every step taken past hop_iter
+            if 2 <= iterations < extend and optimizer.status is None:
+                assert not falling(t, iterations)
+        longest[extend] = max(len(t) - 1 for _, t in traces)
+    assert longest[2] == 2 and longest[12] > 2
 
 
 def _max_relative_difference(model, a, k):

@@ -134,6 +134,9 @@ def register(subparsers) -> None:
                    help="at most N moves of a hop are refitted, those of lowest energy; a larger N only adds "
                    "successes, at the cost of time in starts that fail (degree 10, K = 300, 16 starts: 144 gave "
                    "12 successes at a median 135 s per start, 48 gave 10 at 106 s)")
+    p.add_argument("--hop-extend", type=int, default=d.hop_extend,
+                   help="a move's short refit (15 iterations) still above the energy but falling by 10 %% over "
+                   "its last 3 iterations goes on, up to N iterations in all; 15 turns this off")
     p.add_argument("--stage-basis-tol", type=_optional_tol, default=d.stage_basis_tol,
                    help="harmonic fits: every stage but the last runs on the smallest basis degree on which its "
                    "eigenvalues agree with those on --lmax to this relative tolerance at a reference rho (chosen "
@@ -311,6 +314,7 @@ def _fit(args) -> int:
                          schedule=_schedule(args.schedule, target.numeig, args.lmax_factor), starts=args.starts,
                          seed=args.seed, start_amplitude=args.amplitude, max_iter=args.max_iter,
                          basin_hops=args.basin_hops, hop_grid=args.hop_grid, hop_tries=args.hop_tries,
+                         hop_extend=args.hop_extend,
                          stage_basis_tol=args.stage_basis_tol, checkpoint_every=args.checkpoint_every,
                          checkpoint_path=str(out / "checkpoint.h5") if args.checkpoint_every or args.resume else None,
                          progress=not args.quiet)

@@ -157,6 +157,12 @@ class FitOptions:
         ``lm_acceleration``), which reaches the same energy in them: on 12 moves from a degree-10 local minimum
         (Lb 24, K = 300) the energies after 15 iterations agreed to 2-3 % (most to all printed digits) at 0.7× the
         time; the accepted move's refit to convergence uses ``lm_acceleration``.
+    hop_extend : int
+        A screening refit still above the current energy at ``hop_iter`` iterations goes on, up to this many
+        iterations in all, while its energy keeps falling fast (by 10 % over the last 3 iterations); set it to
+        ``hop_iter`` for none.  In failed degree-10 states (benchmarks/bench_hop_screening.py) the moves that fall
+        back into the state's own minimum reach its energy within a few iterations and stop there, while the moves
+        that leave it were still falling at 15 iterations and crossed it at 18 to 35.
     hop_grid : bool
         When no cheap move lowers the energy, try every degree block turned by the 23 rotations of the octahedral
         group (and, for odd blocks, by the 24 improper ones): :meth:`~shspec.model.SpectralModel.escape_moves`
@@ -206,6 +212,7 @@ class FitOptions:
     lm_acceleration: bool = True
     basin_hops: int = 12
     hop_iter: int = 15
+    hop_extend: int = 45
     hop_grid: bool = True
     hop_tries: int = 144
     orient_blocks: bool = False
@@ -244,6 +251,7 @@ class FitOptions:
         check_int(self.basin_hops, "basin_hops", minimum=0)
         check_int(self.hop_iter, "hop_iter", minimum=1)
         check_int(self.hop_tries, "hop_tries", minimum=1)
+        check_int(self.hop_extend, "hop_extend", minimum=self.hop_iter)
         for name in ("hop_grid", "orient_blocks"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidArgumentError(f"{name} must be a bool, got {getattr(self, name)!r}")

@@ -34,6 +34,13 @@ DEFAULT_STAGE_MAX_ITER = 40
 #: leave the parity saddle, small enough not to undo what the earlier stages found.
 _NEW_DEGREE_SCALE = 0.05
 
+#: A hop's screening refit goes on past ``hop_iter`` while its energy fell by this share over the last
+#: _FALLING_SPAN iterations: in failed degree-10 states the moves that fall back into the state's own minimum slow
+#: down just above its energy, while the moves that leave it were still falling steeply at 15 iterations and
+#: crossed it at 18-35 (benchmarks/bench_hop_screening.py).
+_FALLING = 0.1
+_FALLING_SPAN = 3
+
 
 def numeig_ramp(numeig: int, lmax_factor: int | None = None, first: int = 16) -> tuple[Stage, ...]:
     """A schedule that matches more and more eigenvalues: k = 16, 36, 64, ... ((2j)² up to ``numeig``), then all.
@@ -342,23 +349,28 @@ def _level_text(model: SpectralModel, level: int | None) -> str:
 def _hop_once(problem: FitProblem, progress: StartProgress, s: int, moves: list, status: str) -> tuple[bool, str]:
     """Try ``moves`` (parameter vectors) from the state in ``progress`` with the objective of stage s: the
     ``hop_tries`` of lowest energy before any refit (one eigensolve each), in that order, each refitted for
-    ``hop_iter`` iterations (LM without the geodesic acceleration); the first that ends below the current energy is
-    refitted to convergence with the options as given and accepted into ``progress``.  Deterministic.
+    ``hop_iter`` iterations (LM without the geodesic acceleration), and on while it is still above the current
+    energy but falling fast (by :data:`_FALLING` over the last :data:`_FALLING_SPAN` iterations), up to
+    ``hop_extend`` iterations in all; the first that ends below the current energy is refitted to convergence with
+    the options as given and accepted into ``progress``.  Deterministic.
 
     Returns (accepted, status of the last refit or ``status``)."""
     opt = problem.options
     # the short screening refits gain nothing measurable from the acceleration's extra solve (FitOptions.hop_iter)
     screening = replace(opt, lm_acceleration=False)
 
-    def run(params, iters, options):
+    def run(params, iters, options, extend=0):
         try:
             obj = problem.objective(s, params)
             optimizer = make_optimizer(problem.optimizer, obj, obj.initial(), options)
         except NotPositiveError:  # a move that leaves ρ non-positive
             return None
-        hist = []
-        while optimizer.status is None and optimizer.iteration < iters:
+        energies, hist = [optimizer.ev.energy], []
+        while optimizer.status is None and (optimizer.iteration < iters or (
+                optimizer.iteration < extend and progress.energy <= energies[-1]
+                <= (1.0 - _FALLING) * energies[-1 - min(_FALLING_SPAN, len(energies) - 1)])):
             optimizer.step()
+            energies.append(optimizer.ev.energy)
             hist.append((s, optimizer.ev.energy, optimizer.ev.relative_residual))
         return optimizer, obj, hist
 
@@ -373,7 +385,7 @@ def _hop_once(problem: FitProblem, progress: StartProgress, s: int, moves: list,
     for k in np.argsort(energies, kind="stable")[:opt.hop_tries]:
         if not np.isfinite(energies[k]):
             break
-        out = run(moves[k], opt.hop_iter, screening)
+        out = run(moves[k], opt.hop_iter, screening, opt.hop_extend)
         if out is None or out[0].ev.energy >= progress.energy:
             continue
         optimizer, obj, hist = out
