@@ -3,9 +3,10 @@
 The degree-10 goal of the harmonic inverse (random centred ρ of seed 1, La 10, Lb 24, 300 eigenvalues; ≥ 3 of 4
 starts, median ≤ 2 minutes per start) misses its time by about a factor of two (bench_global_search.json).  This
 script runs N starts (``--starts``, default 8) of the library's defaults (the capped degree ramp on the stages' own
-bases, 12 basin hops with the octahedral grid moves, at most 144 refits per round of moves), N with 48 refits per
-round (the default before) and N with every stage on the model's basis (``--only`` picks variants; the others'
-records in the JSON are kept), and records for each start the
+bases, 12 basin hops with the octahedral grid moves, at most 144 refits per round of moves, a refit still falling
+fast at 15 iterations extended to at most 45), N without that extension (the default before), N with 48 refits per
+round (the default before that) and N with every stage on the model's basis (``--only`` picks variants, comma-
+separated; the others' records in the JSON are kept, each with its commit and CPU), and records for each start the
 time to the end of the stages and, for every round of moves (one call of ``shspec.inverse.schedule._hop_once``:
 the cheap moves of a hop, or the grid moves it tries after them), the moves screened, its time, whether a move was
 accepted and the energy before and after.  The rounds are timed by wrapping ``_hop_once`` inside each worker; the
@@ -32,7 +33,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, load_average, machine_info, threads, write_json  # noqa: E402
 
 LA, LB, K = 10, 24, 300
-VARIANTS = {"defaults": {}, "hop_tries_48": {"hop_tries": 48}, "full_basis": {"stage_basis_tol": None}}
+VARIANTS = {"defaults": {}, "no_extension": {"hop_extend": 15}, "hop_tries_48": {"hop_tries": 48},
+            "full_basis": {"stage_basis_tol": None}}
 
 
 def _problem(variant: str):
@@ -81,7 +83,7 @@ def run(only: str | None, nstarts: int = 8) -> dict:
     out = {"machine": machine_info(), "load_before": load_average(), "case": f"random degree {LA} (Lb {LB}, K {K})",
            "variants": {}}
     for variant in VARIANTS:
-        if only and only not in variant:
+        if only and not any(name in variant for name in only.split(",")):
             continue
         t0, load_before = time.perf_counter(), load_average()
         with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
@@ -95,6 +97,7 @@ def run(only: str | None, nstarts: int = 8) -> dict:
             "median_hops_seconds": float(np.median([s["hops_seconds"] for s in starts])),
             "failed_hop_seconds": [h["seconds"] for s in starts for h in s["hops"] if not h["accepted"]],
             "options": VARIANTS[variant], "git_commit": out["machine"].get("git_commit"),
+            "cpu": out["machine"].get("cpu"),
             "load_before": load_before, "load_after": load_average(), "per_start": starts}
         print(variant, out["variants"][variant]["successes"], "/", nstarts, flush=True)
     out["load_after"] = load_average()
@@ -105,12 +108,14 @@ if __name__ == "__main__":
     import argparse
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", help="run only the variants whose name contains this text")
+    parser.add_argument("--only", help="run only the variants whose name contains this text (or one of these, "
+                        "comma-separated)")
     parser.add_argument("--starts", type=int, default=8, help="starts per variant, indices 0 … N−1 (default 8)")
     args = parser.parse_args()
     result = run(args.only, args.starts)
     previous = RESULTS / "bench_hop_anatomy.json"
     if args.only and previous.exists():  # keep the variants this run did not repeat, each with its own record
-        kept = json.loads(previous.read_text())["variants"]
+        old = json.loads(previous.read_text())
+        kept = {k: {"cpu": old["machine"].get("cpu"), **v} for k, v in old["variants"].items()}
         result["variants"] = {**{k: v for k, v in kept.items() if k not in result["variants"]}, **result["variants"]}
     print(write_json("bench_hop_anatomy.json", result))
