@@ -136,7 +136,8 @@ def register(subparsers) -> None:
                    "12 successes at a median 135 s per start, 48 gave 10 at 106 s)")
     p.add_argument("--hop-extend", type=int, default=d.hop_extend,
                    help="a move's short refit (15 iterations) still above the energy but falling by 10 %% over "
-                   "its last 3 iterations goes on, up to N iterations in all; 15 turns this off")
+                   "its last 3 iterations goes on, up to N iterations in all; 15 turns this off (degree 10, K = 300, "
+                   "8 starts: 45 gave 7 successes, 15 gave 6, at the same median time)")
     p.add_argument("--stage-basis-tol", type=_optional_tol, default=d.stage_basis_tol,
                    help="harmonic fits: every stage but the last runs on the smallest basis degree on which its "
                    "eigenvalues agree with those on --lmax to this relative tolerance at a reference rho (chosen "

@@ -162,7 +162,9 @@ class FitOptions:
         iterations in all, while its energy keeps falling fast (by 10 % over the last 3 iterations); set it to
         ``hop_iter`` for none.  In failed degree-10 states (benchmarks/bench_hop_screening.py) the moves that fall
         back into the state's own minimum reach its energy within a few iterations and stop there, while the moves
-        that leave it were still falling at 15 iterations and crossed it at 18 to 35.
+        that leave it were still falling at 15 iterations (a probe: 3 of 12 continued crossed it at 18 to 20).  At
+        degree 10 (Lb 24, K = 300, 8 starts on an AMD EPYC; bench_hop_anatomy.json) 45 made 7 succeed and 3 of
+        the first four, 15 made 6 and 2, at a median 246 s per start either way.
     hop_grid : bool
         When no cheap move lowers the energy, try every degree block turned by the 23 rotations of the octahedral
         group (and, for odd blocks, by the 24 improper ones): :meth:`~shspec.model.SpectralModel.escape_moves`
@@ -174,7 +176,7 @@ class FitOptions:
         each); it bounds the cost of a hop that finds nothing.  A larger value only adds successes: the moves are
         tried in the same order and the first that lowers the energy is taken, so a start follows the same path
         until a smaller cap would have given up.  At degree 10 (Lb 24, K = 300, 16 starts of seed 0;
-        benchmarks/results/bench_hop_anatomy.json) 144 made 12 of 16 starts succeed at a median 135 s per start
+        benchmarks/results/bench_hop_anatomy.json of commit c851d30) 144 made 12 of 16 starts succeed at a median 135 s per start
         (the failures 230–342 s), 48 made 10 of 16 at 106 s (the failures 105–154 s).
     orient_blocks : bool
         After each stage that first fits a new level (a new degree block), try the model's orientations of that

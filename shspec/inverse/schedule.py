@@ -36,8 +36,8 @@ _NEW_DEGREE_SCALE = 0.05
 
 #: A hop's screening refit goes on past ``hop_iter`` while its energy fell by this share over the last
 #: _FALLING_SPAN iterations: in failed degree-10 states the moves that fall back into the state's own minimum slow
-#: down just above its energy, while the moves that leave it were still falling steeply at 15 iterations and
-#: crossed it at 18-35 (benchmarks/bench_hop_screening.py).
+#: down just above its energy, while the moves that leave it were still falling steeply at 15 iterations
+#: (benchmarks/bench_hop_screening.py) and, continued in a probe, crossed it at 18-20 (FitOptions.hop_extend).
 _FALLING = 0.1
 _FALLING_SPAN = 3
 
