@@ -239,8 +239,8 @@ def test_cli_degree_ramp_with_basin_hops(tmp_path):
     from shspec.inverse.schedule import DEFAULT_STAGE_MAX_ITER
 
     assert main(["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "1",
-                 "--max-iter", "5", "--schedule", "degree-ramp", "--basin-hops", "1", "--hop-tries", "7", "--hop-extend", "20",
-                 "--out", str(tmp_path), "--quiet"]) == 0
+                 "--max-iter", "5", "--schedule", "degree-ramp", "--basin-hops", "1", "--hop-tries", "7",
+                 "--hop-extend", "20", "--out", str(tmp_path), "--quiet"]) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     stages = [(s["lmax_factor"], s["numeig"]) for s in summary["options"]["schedule"]]
     assert stages == [(s.lmax_factor, s.numeig) for s in degree_ramp(20, 6)]

@@ -176,8 +176,8 @@ class FitOptions:
         each); it bounds the cost of a hop that finds nothing.  A larger value only adds successes: the moves are
         tried in the same order and the first that lowers the energy is taken, so a start follows the same path
         until a smaller cap would have given up.  At degree 10 (Lb 24, K = 300, 16 starts of seed 0;
-        benchmarks/results/bench_hop_anatomy.json of commit c851d30) 144 made 12 of 16 starts succeed at a median 135 s per start
-        (the failures 230–342 s), 48 made 10 of 16 at 106 s (the failures 105–154 s).
+        benchmarks/results/bench_hop_anatomy.json of commit c851d30) 144 made 12 of 16 starts succeed at a median
+        135 s per start (the failures 230–342 s), 48 made 10 of 16 at 106 s (the failures 105–154 s).
     orient_blocks : bool
         After each stage that first fits a new level (a new degree block), try the model's orientations of that
         block relative to the ones fitted before (:meth:`~shspec.model.SpectralModel.escape_moves` with
