@@ -37,7 +37,8 @@ VARIANTS = {"defaults": {}, "no_extension": {"hop_extend": 15}, "hop_tries_48": 
             "full_basis": {"stage_basis_tol": None}}
 
 
-def _problem(variant: str):
+def _problem(**options):
+    """The degree-10 goal case under FitOptions(**options), and its truth (coefficients)."""
     from shspec import HarmonicModel
     from shspec.inverse import FitOptions, harmonic_target
     from shspec.inverse.schedule import FitProblem
@@ -45,7 +46,7 @@ def _problem(variant: str):
 
     truth = random_centred_coefficients(1, LA, 0.2)
     model = HarmonicModel(LB, LA)
-    return FitProblem(model, harmonic_target(truth, LB, K), FitOptions(**VARIANTS[variant])), truth
+    return FitProblem(model, harmonic_target(truth, LB, K), FitOptions(**options)), truth
 
 
 def run_one(variant: str, index: int) -> dict:
@@ -68,7 +69,7 @@ def run_one(variant: str, index: int) -> dict:
 
     schedule._hop_once = timed
     with threads(1):
-        problem, truth = _problem(variant)
+        problem, truth = _problem(**VARIANTS[variant])
         t0 = time.perf_counter()
         rng = np.random.default_rng([problem.options.seed, index])
         r = run_start(problem, StartProgress(index, 0, problem.initial(rng, index), None))

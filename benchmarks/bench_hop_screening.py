@@ -37,22 +37,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from bench_hop_anatomy import K, LA, LB, _problem  # noqa: E402
 from common import load_average, machine_info, threads, write_json  # noqa: E402
 
-LA, LB, K = 10, 24, 300
 ITERATIONS = 15
 RANK_AT = (0, 1, 2, 3, 5, 8, 15)
-
-
-def _problem(hop_tries: int):
-    from shspec import HarmonicModel
-    from shspec.inverse import FitOptions, harmonic_target
-    from shspec.inverse.schedule import FitProblem
-    from shspec.sphere.random import random_centred_coefficients
-
-    truth = random_centred_coefficients(1, LA, 0.2)
-    model = HarmonicModel(LB, LA)
-    return FitProblem(model, harmonic_target(truth, LB, K), FitOptions(hop_tries=hop_tries)), truth
 
 
 def run_state(index: int, hop_tries: int) -> dict:
@@ -62,7 +51,7 @@ def run_state(index: int, hop_tries: int) -> dict:
     from shspec.inverse.schedule import StartProgress, _grid_moves, run_start
 
     with threads(1):
-        problem, truth = _problem(hop_tries)
+        problem, truth = _problem(hop_tries=hop_tries)
         rng = np.random.default_rng([problem.options.seed, index])
         t = time.perf_counter()
         r = run_start(problem, StartProgress(index, 0, problem.initial(rng, index), None))
