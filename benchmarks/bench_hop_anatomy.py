@@ -101,8 +101,21 @@ def run(only: str | None, nstarts: int = 8) -> dict:
             "cpu": out["machine"].get("cpu"),
             "load_before": load_before, "load_after": load_average(), "per_start": starts}
         print(variant, out["variants"][variant]["successes"], "/", nstarts, flush=True)
-    out["load_after"] = load_average()
+        out["load_after"] = load_average()
+        print(_write(out, only))  # after every variant: an interrupted run keeps the variants it finished
     return out
+
+
+def _write(result: dict, only: str | None) -> str:
+    """Write ``result``, keeping the previous file's variants this run has not run: with ``only`` every other one
+    (each with its own record and CPU), without it those still to come."""
+    previous = RESULTS / "bench_hop_anatomy.json"
+    if previous.exists():
+        old = json.loads(previous.read_text())
+        kept = {k: {"cpu": old["machine"].get("cpu"), **v} for k, v in old["variants"].items()
+                if k not in result["variants"] and (only or k in VARIANTS)}
+        result = {**result, "variants": {**kept, **result["variants"]}}
+    return write_json("bench_hop_anatomy.json", result)
 
 
 if __name__ == "__main__":
@@ -113,10 +126,4 @@ if __name__ == "__main__":
                         "comma-separated)")
     parser.add_argument("--starts", type=int, default=8, help="starts per variant, indices 0 … N−1 (default 8)")
     args = parser.parse_args()
-    result = run(args.only, args.starts)
-    previous = RESULTS / "bench_hop_anatomy.json"
-    if args.only and previous.exists():  # keep the variants this run did not repeat, each with its own record
-        old = json.loads(previous.read_text())
-        kept = {k: {"cpu": old["machine"].get("cpu"), **v} for k, v in old["variants"].items()}
-        result["variants"] = {**{k: v for k, v in kept.items() if k not in result["variants"]}, **result["variants"]}
-    print(write_json("bench_hop_anatomy.json", result))
+    run(args.only, args.starts)
