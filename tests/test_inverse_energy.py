@@ -8,6 +8,7 @@ import pytest
 from shspec import HarmonicModel
 from shspec.errors import InvalidArgumentError, NotPositiveError
 from shspec.sphere.harmonics import degrees
+from shspec.sphere.evaluate import sample_harmonic
 from shspec.sphere.random import random_centred_coefficients
 from shspec.inverse.energy import Objective, eigenvalue_weights, relative_residual, rms_relative_residual
 from shspec.inverse.parametrization import Parametrization
@@ -320,3 +321,63 @@ def test_converged_basis_degree_against_a_much_larger_basis():
     assert lb > floor and error(floor) > 1e-4
     with pytest.raises(InvalidArgumentError):
         converged_basis_degree(a, 64, tol=0.0)
+
+
+def _null_direction(model, p, k, seed):
+    """A unit-RMS direction over the free variables in the null space of the relative Jacobian at p."""
+    free = model.free_parameters(False)
+    spec = model.spectrum(p, k)
+    jac = model.jacobian(spec)[1:, free] / spec.eigenvalues[1:, None]
+    if model.transform == "exp":
+        jac = jac * p[None, free]
+    _, s, vt = np.linalg.svd(jac)
+    null = vt[int(np.sum(s > 1e-6 * s[0])):]
+    v = np.zeros(model.nparams)
+    v[free] = null.T @ np.random.default_rng(seed).standard_normal(null.shape[0])
+    return v / np.sqrt(np.mean(v[free] ** 2)), vt[:int(np.sum(s > 1e-6 * s[0]))]
+
+
+def test_isospectral_points_keep_the_spectrum_and_leave_the_truth_to_second_order():
+    from shspec.inverse.identifiability import isospectral_point
+
+    sphere = icosphere(1)
+    c = np.exp(sample_harmonic(random_centred_coefficients(3, 3, 1.0), sphere.vertices))
+    model = MeshModel(sphere, transform="exp")
+    k = 25  # 24 informative eigenvalues for 42 factors: an 18-dimensional set shares them
+    v, rows = _null_direction(model, c, k, 1)
+    lam = model.spectrum(c, k).eigenvalues
+    errors = []
+    for delta in (0.0025, 0.005):
+        point = isospectral_point(model, c, delta * v, k)
+        assert point.converged and point.relative_residual <= 1e-12
+        np.testing.assert_allclose(model.spectrum(point.params, k).eigenvalues[1:], lam[1:], rtol=1e-11)
+        d = np.log(point.params) - np.log(c)
+        assert np.sqrt(np.mean(d * d)) == pytest.approx(delta, rel=0.05)  # the return is of second order
+        errors.append(np.linalg.norm(rows @ d))
+    # the set is curved: the error over the determined directions is of the order δ², not 0 and not δ
+    assert 3.5 < errors[1] / errors[0] < 4.5 and errors[0] > 1e-5  # 5.6e-4 and 2.3e-3 measured
+    # a step along a determined direction is undone: the walk comes back to c
+    point = isospectral_point(model, c, 0.01 * np.sqrt(42) * rows[0], k)
+    assert point.converged and np.max(np.abs(np.log(point.params / c))) < 1e-3
+
+
+def test_isospectral_points_of_a_harmonic_rho_and_bad_directions():
+    from shspec.inverse.identifiability import isospectral_point
+
+    model = HarmonicModel(10, 4)
+    a = random_centred_coefficients(6, 4, 0.2)
+    k = 10  # 9 informative eigenvalues, 21 free coefficients
+    v, _ = _null_direction(model, a, k, 2)
+    point = isospectral_point(model, a, 0.01 * v, k)
+    assert point.converged
+    np.testing.assert_allclose(model.spectrum(point.params, k).eigenvalues[1:],
+                               model.spectrum(a, k).eigenvalues[1:], rtol=1e-11)
+    assert np.linalg.norm(point.params - a) > 0.005  # it moved: another ρ with these ten eigenvalues
+    gauge = np.zeros_like(a)
+    gauge[1] = 0.1  # a_1m, fixed by the Möbius centring
+    with pytest.raises(InvalidArgumentError, match="gauge fixes"):
+        isospectral_point(model, a, gauge, k)
+    with pytest.raises(InvalidArgumentError, match="direction must be"):
+        isospectral_point(model, a, np.full(24, 0.1), k)
+    with pytest.raises(InvalidArgumentError, match="direction must be"):
+        isospectral_point(model, a, np.full(25, np.nan), k)

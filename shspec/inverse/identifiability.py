@@ -14,6 +14,12 @@ With the singular values s₁ ≥ … of J on the remaining d directions:
 * ``noise_gain`` = ‖J⁺‖_F / ‖p‖: the expected relative error of p per unit of independent relative noise σ on each
   eigenvalue (E‖δp‖ ≈ σ ‖J⁺‖_F).
 
+Where the first K eigenvalues determine fewer directions than there are parameters, the parameters with exactly
+the spectrum of p form a set through p, curved, not the flat null space of J: :func:`isospectral_point` walks it
+(a step along an undetermined direction, then minimum-norm Gauss–Newton back to the spectrum).  The error of such a
+point over the directions determined *at p* (:func:`determined_directions`) grows as the square of the step, so no
+fit that sees only those K eigenvalues can be held to an error over them that is below that square.
+
 Numbers over the free parameters of the model's gauge (harmonic: a_1m = 0, a_00 when the area is fitted).
 """
 
@@ -25,10 +31,14 @@ import numpy as np
 import scipy.linalg
 
 from ..checks import check_float, check_int
-from ..errors import InvalidArgumentError
+from ..errors import InvalidArgumentError, NotPositiveError
 from ..model import SpectralModel
 
-__all__ = ["Identifiability", "identifiability", "identifiability_by_numeig", "determined_directions"]
+__all__ = ["Identifiability", "identifiability", "identifiability_by_numeig", "determined_directions",
+           "IsospectralPoint", "isospectral_point"]
+
+#: Halvings of a return step of :func:`isospectral_point` before it gives up.
+_HALVINGS = 10
 
 
 @dataclass(frozen=True)
@@ -201,3 +211,118 @@ def determined_directions(model: SpectralModel, params, numeig: int, *, rank_tol
     _, s, vt = np.linalg.svd(jac, full_matrices=False)
     rank = int(np.sum(s > rank_tol * s[0])) if s.size and s[0] > 0 else 0
     return vt[:rank].T
+
+
+@dataclass(frozen=True)
+class IsospectralPoint:
+    """Parameters with the first K eigenvalues of the parameters they started from (:func:`isospectral_point`).
+
+    Attributes
+    ----------
+    params : (nparams,) array
+    relative_residual : float
+        max over i ≥ 1 of |λ_i − λ*_i| / λ*_i, the start's spectrum λ*.
+    iterations : int
+        Gauss–Newton steps taken back to the spectrum.
+    converged : bool
+        Whether ``relative_residual`` ≤ the tolerance.
+    """
+
+    params: np.ndarray
+    relative_residual: float
+    iterations: int
+    converged: bool
+
+
+def isospectral_point(model: SpectralModel, params, direction, numeig: int, *, tol: float = 1e-12,
+                      max_iter: int = 30, rank_tol: float = 1e-6) -> IsospectralPoint:
+    """Step from ``params`` along ``direction`` and return to the first ``numeig`` eigenvalues of ``params``.
+
+    The step is taken in the model's variables u (p = u, or s = log p for ``transform="exp"``).  Each return step is
+    the minimum-norm Gauss–Newton correction δu = −J⁺ r of the relative residuals r_i = (λ_i − λ*_i)/λ*_i (i ≥ 1),
+    J⁺ the pseudo-inverse of the relative Jacobian over the free parameters truncated at ``rank_tol``·s₁, so that
+    the result lies near the point of the isospectral set closest to the step.  A ``direction`` in the null space
+    of J (the complement of :func:`determined_directions`) leaves the spectrum unchanged to first order; the return
+    then removes the second-order change.
+
+    At a multiple eigenvalue of ``params`` (a symmetric ρ) the sorted eigenvalues are not differentiable and the
+    return converges slowly or not at all; the point is then returned with ``converged`` False.
+
+    Parameters
+    ----------
+    model : SpectralModel
+    params : (nparams,) array
+        The point whose spectrum λ* (its first ``numeig`` eigenvalues, 1/area) is kept.
+    direction : (nparams,) array
+        The step in the variables u; zero on the parameters the gauge fixes.
+    numeig : int
+        K ≥ 2, λ₀ included.
+    tol : float
+        Largest relative residual accepted.
+    max_iter : int
+        Most Gauss–Newton steps.
+    rank_tol : float
+        Relative singular value below which a direction counts as undetermined.
+
+    Returns
+    -------
+    IsospectralPoint
+        Not converged when ``max_iter`` steps did not reach ``tol`` or a step halved ten times still did not lower
+        the largest residual (a step too long for the sorted eigenvalues to stay paired with their modes).
+
+    Raises
+    ------
+    InvalidArgumentError
+        For a model that is not a SpectralModel, arrays of the wrong shape, a direction that moves a gauge-fixed
+        parameter or is not finite, or bad K, tolerances or iteration count.
+    NotPositiveError
+        When the step along ``direction`` itself leaves the model's valid parameters (e.g. factors below 0, or
+        vertex masses spanning more than double precision resolves); a return step that would is halved instead.
+    """
+    p, numeig, rank_tol, spec = _checked(model, params, numeig, rank_tol)
+    tol = check_float(tol, "tol", positive=True)
+    max_iter = check_int(max_iter, "max_iter", minimum=1)
+    step = np.asarray(direction, dtype=float)
+    if step.shape != p.shape or not np.all(np.isfinite(step)):
+        raise InvalidArgumentError(f"direction must be a finite array of shape {p.shape}, got shape {step.shape}")
+    free = model.free_parameters(False)
+    fixed = np.ones(p.size, dtype=bool)
+    fixed[free] = False
+    if np.any(step[fixed] != 0):
+        raise InvalidArgumentError(f"direction moves {int(np.count_nonzero(step[fixed]))} parameters the gauge fixes")
+    exp = model.transform == "exp"
+    lam_star = spec.eigenvalues[1:]
+    u = (np.log(p) if exp else p) + step
+
+    def residuals(u):
+        q = np.exp(u) if exp else u
+        spec = model.spectrum(q, numeig)
+        return q, spec, (spec.eigenvalues[1:] - lam_star) / lam_star
+
+    q, spec, r = residuals(u)
+    iteration = 0
+    while np.max(np.abs(r)) > tol and iteration < max_iter:
+        iteration += 1
+        jac = model.jacobian(spec)[1:, free] / lam_star[:, None]
+        if exp:
+            jac = jac * q[None, free]  # ∂/∂s = p ∂/∂p
+        u_svd, s, vt = np.linalg.svd(jac, full_matrices=False)
+        rank = int(np.sum(s > rank_tol * s[0]))
+        delta = np.zeros_like(u)
+        delta[free] = -vt[:rank].T @ ((u_svd[:, :rank].T @ r) / s[:rank])
+        # far from the set the sorted eigenvalues cross and a full step can overshoot: halve until it helps
+        for _ in range(_HALVINGS):
+            try:
+                trial = residuals(u + delta)
+            except NotPositiveError:
+                trial = None
+            if trial is not None and np.max(np.abs(trial[2])) < np.max(np.abs(r)):
+                break
+            delta = delta / 2
+        else:
+            break
+        u = u + delta
+        q, spec, r = trial
+    residual = float(np.max(np.abs(r)))
+    return IsospectralPoint(params=q, relative_residual=residual, iterations=iteration,
+                            converged=residual <= tol)
