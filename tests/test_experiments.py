@@ -155,3 +155,8 @@ def test_pl_basin_converges_quadratically_next_to_the_truth(runs):
     assert float(near["log_rms_determined"]) < 1e-2 * float(near["start_log_rms"])
     numbers = json.loads((runs / "pl-basin" / "meta.json").read_text())["numbers"]
     assert numbers["per_numeig"]["60"]["determined_directions"] == 59  # K = 60 eigenvalues, λ₀ = 0 carries none
+    with open(runs / "pl-basin" / "isospectral.csv") as fh:
+        (walk,) = csv.DictReader(fh)
+    # a step of 1e-2 along the null space, back to the spectrum: off the truth to second order (1.9e-4 measured)
+    assert walk["converged"] == "True" and float(walk["relative_residual"]) <= 1e-12
+    assert 1e-3 * 1e-2 ** 2 < float(walk["log_rms_determined"]) < 0.1 * 1e-2

@@ -9,6 +9,12 @@ vertices and over the directions the K eigenvalues determine at c*
 (:func:`~shspec.inverse.identifiability.determined_directions`), and the number of the start's eigenvalues that lie
 further from their target than the target's gap to its nearest neighbour: sorted matching pairs those with the
 wrong modes, and that count separates the starts that converge from those that do not.
+
+Where K − 1 < n the factors with exactly the target's K eigenvalues form a set, not a point.  For each K and each
+step δ of ``isospectral_steps`` the run walks it (:func:`~shspec.inverse.identifiability.isospectral_point`): a
+step of RMS δ from log c* along a white-noise direction in the null space of the Jacobian at c*, then back to the
+spectrum.  Reported: whether the return converged, and the RMS log error of the isospectral point over the
+directions determined at c*.  That error grows as δ²: it is what a fit that sees only the K eigenvalues may keep.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ import numpy as np
 from ..errors import InvalidArgumentError
 from ..inverse import FitOptions, fit, mesh_target
 from ..inverse.energy import relative_residual, rms_relative_residual
-from ..inverse.identifiability import determined_directions
+from ..inverse.identifiability import determined_directions, isospectral_point
 from ..mesh import MeshModel
 from ..sphere.evaluate import sample_harmonic
 from ..sphere.random import random_coefficients
@@ -58,6 +64,26 @@ def _gaps(lam: np.ndarray) -> np.ndarray:
     return np.minimum(np.diff(lam[1:], append=np.inf), np.diff(lam[1:], prepend=-np.inf))
 
 
+def _walk(model, target, basis, steps, rng, h5) -> list[dict]:
+    """Isospectral points of ``target`` at RMS log steps ``steps`` along one null direction of the Jacobian."""
+    n, k = model.nparams, target.numeig
+    z = rng.standard_normal(n)
+    z -= basis @ (basis.T @ z)
+    z /= np.sqrt(np.mean(z * z))
+    s_true, out = np.log(target.factors), []
+    for delta in steps:
+        t0 = time.process_time()
+        point = isospectral_point(model, target.factors, delta * z, k)
+        d = np.log(point.params) - s_true
+        det = float(np.linalg.norm(basis.T @ d) / np.sqrt(n))
+        out.append({"numeig": k, "step_log_rms": delta, "converged": point.converged,
+                    "relative_residual": point.relative_residual, "log_rms": float(np.sqrt(np.mean(d * d))),
+                    "log_rms_determined": det, "determined_over_step_squared": det / delta ** 2,
+                    "iterations": point.iterations, "cpu_s": time.process_time() - t0})
+        h5[f"K={k} isospectral step={delta:g}"] = {"log_factors": np.log(point.params)}
+    return out
+
+
 def _radius(rows: list) -> dict:
     ok = [r["start_log_rms"] for r in rows if r["converged"]]
     bad = [r["start_log_rms"] for r in rows if not r["converged"]]
@@ -80,10 +106,13 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         raise InvalidArgumentError(f"pl-basin sizes must be positive RMS log errors, got {sizes!r}")
     if not ks or not all(isinstance(k, int) and k >= 2 for k in ks):
         raise InvalidArgumentError(f"pl-basin numeig_values must be integers >= 2, got {ks!r}")
-    bar = Progress(progress, 1 + len(ks) * len(kinds) * len(sizes), "pl-basin")
+    steps = cfg["isospectral_steps"]
+    if not all(isinstance(e, (int, float)) and e > 0 for e in steps):
+        raise InvalidArgumentError(f"pl-basin isospectral_steps must be positive RMS log steps, got {steps!r}")
+    bar = Progress(progress, 1 + len(ks) * (len(kinds) * len(sizes) + 1), "pl-basin")
     options = FitOptions(schedule=(), starts=1, basin_hops=0, reg=0.0, optimizer="lm", max_iter=cfg["max_iter"],
                          seed=cfg["seed"])
-    rows, h5, per_k = [], {}, {}
+    rows, walks, h5, per_k = [], [], {}, {}
     with single_threaded():
         mesh = load_mesh_area_4pi(cfg["mesh_dir"], cfg["mesh"])
         full = mesh_target(mesh, 12, max(ks), 6, name=cfg["mesh"], source="cmcf")
@@ -123,6 +152,8 @@ def run(cfg: dict, out, progress: bool) -> Finding:
                                                       "fitted_log_factors": np.log(best.params)}
                     bar.step(f"K = {k}, {kind} ε = {eps:g}: residual {best.relative_residual:.1e}, log error over "
                              f"the determined directions {det:.2e}")
+            walks += _walk(model, target, basis, steps, np.random.default_rng([cfg["seed"], k]), h5)
+            bar.step(f"K = {k}: isospectral points at steps {steps}")
     h5["target"] = {"sphere_vertices": full.sphere.vertices, "faces": full.sphere.faces,
                     "cmcf_factors": full.factors, "target_eigenvalues": np.asarray(full.eigenvalues)}
     write_h5(out / "results.h5", h5)
@@ -142,6 +173,14 @@ def run(cfg: dict, out, progress: bool) -> Finding:
                 for r in rs:
                     ax.plot(r["start_log_rms"], max(r[key], 1e-17), "o", color=color, ms=7,
                             mfc="white" if r["converged"] else color)
+    for ik, k in enumerate(ks):
+        ws = [w for w in walks if w["numeig"] == k]
+        shade = str(0.6 * (1 - (ik + 1) / len(ks)))
+        axes[0].loglog([w["step_log_rms"] for w in ws], [max(w["log_rms_determined"], 1e-17) for w in ws], "-",
+                       color=shade, lw=0.8, label=f"K = {k}: isospectral point at step ε (squares)")
+        for w in ws:  # filled: the return to the spectrum did not converge
+            axes[0].plot(w["step_log_rms"], max(w["log_rms_determined"], 1e-17), "s", color=shade, ms=6,
+                         mfc="white" if w["converged"] else shade)
     axes[0].loglog(sizes, sizes, "k:", lw=0.8, label="no change")
     axes[0].set_xlabel("start: RMS log error ε")
     axes[0].set_ylabel("end: RMS log error over the determined directions")
@@ -180,9 +219,19 @@ def run(cfg: dict, out, progress: bool) -> Finding:
            "Sorted matching pairs the shifted eigenvalues with the wrong modes, and the least-squares landscape has "
            "minima right beside the truth: the more eigenvalues, the closer their gaps and the smaller the basin, so "
            "a local fit reaches target (b) with every eigenvalue only from a start this close." if failed else "."))
+    reached = {k: [w for w in walks if w["numeig"] == k and w["converged"]] for k in ks}
+    summary += (" Isospectral points (the same K eigenvalues to 1e-12, reached from a step δ along a null direction "
+                "of the Jacobian at the truth), their RMS log error over the determined directions: " + "; ".join(
+                    f"K = {k}: " + (", ".join(f"{w['log_rms_determined']:.1e} at δ = {w['step_log_rms']:g}"
+                                              for w in reached[k]) or "no return converged")
+                    for k in ks)
+                + ". That error grows as δ²: a fit that reaches zero residual lies somewhere on this set, and its "
+                  "error over the directions determined at the truth is the one of its place there, which the K "
+                  "eigenvalues cannot tell.")
     numbers = {"per_numeig": per_k, "radius": radius, "failed_ending_further": len(worse), "failed": len(failed),
-               "beyond_gap": {k: {"converged": ok, "failed": bad} for k, (ok, bad) in beyond.items()}}
-    return Finding(summary, {"pl_basin": rows}, ["basin.png"], numbers)
+               "beyond_gap": {k: {"converged": ok, "failed": bad} for k, (ok, bad) in beyond.items()},
+               "isospectral": {k: {w["step_log_rms"]: w["log_rms_determined"] for w in reached[k]} for k in ks}}
+    return Finding(summary, {"pl_basin": rows, "isospectral": walks}, ["basin.png"], numbers)
 
 
 register(Experiment(
@@ -191,7 +240,8 @@ register(Experiment(
                "factors); issue 13's target (b)",
     defaults={"mesh": "bunny_600", "mesh_dir": MESH_DIR, "numeig_values": [100, 300, 570],
               "perturbations": ["white", "smooth:4"], "sizes": [1e-4, 1e-3, 1e-2, 3e-2, 1e-1],
-              "max_iter": 100, "seed": 0},
+              "max_iter": 100, "isospectral_steps": [1e-3, 3e-3, 1e-2, 3e-2, 1e-1], "seed": 0},
     quick={"mesh": "bunny_600", "mesh_dir": MESH_DIR, "numeig_values": [60],
-           "perturbations": ["white"], "sizes": [1e-4, 1e-1], "max_iter": 20, "seed": 0},
+           "perturbations": ["white"], "sizes": [1e-4, 1e-1], "max_iter": 20, "isospectral_steps": [1e-2],
+           "seed": 0},
     expected_minutes=4.0, run=run))
