@@ -33,6 +33,7 @@ import scipy.linalg
 from ..checks import check_float, check_int
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..model import SpectralModel
+from .parametrization import Parametrization
 
 __all__ = ["Identifiability", "identifiability", "identifiability_by_numeig", "determined_directions",
            "IsospectralPoint", "isospectral_point"]
@@ -285,44 +286,40 @@ def isospectral_point(model: SpectralModel, params, direction, numeig: int, *, t
     step = np.asarray(direction, dtype=float)
     if step.shape != p.shape or not np.all(np.isfinite(step)):
         raise InvalidArgumentError(f"direction must be a finite array of shape {p.shape}, got shape {step.shape}")
-    free = model.free_parameters(False)
+    par = Parametrization.at(p, model.free_parameters(False), model.transform)
     fixed = np.ones(p.size, dtype=bool)
-    fixed[free] = False
+    fixed[par.free] = False
     if np.any(step[fixed] != 0):
         raise InvalidArgumentError(f"direction moves {int(np.count_nonzero(step[fixed]))} parameters the gauge fixes")
-    exp = model.transform == "exp"
     lam_star = spec.eigenvalues[1:]
-    u = (np.log(p) if exp else p) + step
 
-    def residuals(u):
-        q = np.exp(u) if exp else u
+    def residuals(x):
+        q = par.params(x)
         spec = model.spectrum(q, numeig)
-        return q, spec, (spec.eigenvalues[1:] - lam_star) / lam_star
+        return spec, (spec.eigenvalues[1:] - lam_star) / lam_star
 
-    q, spec, r = residuals(u)
+    x = par.initial() + step[par.free]
+    spec, r = residuals(x)
     iteration = 0
     while np.max(np.abs(r)) > tol and iteration < max_iter:
         iteration += 1
-        jac = model.jacobian(spec)[1:, free] / lam_star[:, None]
-        if exp:
-            jac = jac * q[None, free]  # ∂/∂s = p ∂/∂p
+        jac = par.pullback(x, model.jacobian(spec)[1:] / lam_star[:, None])
         u_svd, s, vt = np.linalg.svd(jac, full_matrices=False)
         rank = int(np.sum(s > rank_tol * s[0]))
-        delta = np.zeros_like(u)
-        delta[free] = -vt[:rank].T @ ((u_svd[:, :rank].T @ r) / s[:rank])
+        delta = -vt[:rank].T @ ((u_svd[:, :rank].T @ r) / s[:rank])
         # far from the set the sorted eigenvalues cross and a full step can overshoot: halve until it helps
         for _ in range(_HALVINGS):
             try:
-                trial = residuals(u + delta)
+                trial = residuals(x + delta)
             except NotPositiveError:
                 trial = None
-            if trial is not None and np.max(np.abs(trial[2])) < np.max(np.abs(r)):
+            if trial is not None and np.max(np.abs(trial[1])) < np.max(np.abs(r)):
                 break
             delta = delta / 2
         else:
             break
-        u = u + delta
-        q, spec, r = trial
+        x = x + delta
+        spec, r = trial
     residual = float(np.max(np.abs(r)))
-    return IsospectralPoint(params=q, relative_residual=residual, iterations=iteration,
+    return IsospectralPoint(params=par.params(x), relative_residual=residual, iterations=iteration,
                             converged=residual <= tol)
