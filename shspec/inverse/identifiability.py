@@ -206,9 +206,8 @@ def determined_directions(model: SpectralModel, params, numeig: int, *, rank_tol
         For a model that is not a SpectralModel, parameters of the wrong shape, or bad K or tolerance.
     """
     p, numeig, rank_tol, spec = _checked(model, params, numeig, rank_tol)
-    jac = model.jacobian(spec)[1:] / spec.eigenvalues[1:, None]
-    if model.transform == "exp":
-        jac = jac * p[None, :]  # ∂/∂s = p ∂/∂p
+    par = Parametrization.at(p, np.arange(p.size), model.transform)  # every variable, the gauge's too
+    jac = par.pullback(par.initial(), model.jacobian(spec)[1:] / spec.eigenvalues[1:, None])
     _, s, vt = np.linalg.svd(jac, full_matrices=False)
     rank = int(np.sum(s > rank_tol * s[0])) if s.size and s[0] > 0 else 0
     return vt[:rank].T
