@@ -294,8 +294,10 @@ class MeshModel(SpectralModel):
 
         On the target's own sphere (same vertex count and positions) the factors are compared vertex by vertex: the
         fit lives on that mesh, no alignment applies.  On another sphere mesh (adaptive refinement, a generic
-        icosphere) the fitted log factors are first Möbius-centred and mapped by the best element of O(3) onto the
-        truth's vertices (:func:`~shspec.mesh.refine.align_vertex_field`); ``aligned`` says which was done."""
+        icosphere) the fitted log factors are first moved by the Möbius map and element of O(3) that fit the truth's
+        best and interpolated at its vertices (:func:`~shspec.mesh.refine.align_vertex_field`).  ``aligned`` says
+        which was done, and then ``log_rms_centred`` is the RMS with the canonical centring alone and
+        ``mobius_translation`` the size |c| of the translation the fit added to it."""
         truth = getattr(target, "factors", None)
         sphere = getattr(target, "sphere", None)
         if truth is None or sphere is None or np.shape(truth) != (sphere.nvertices,):
@@ -303,16 +305,18 @@ class MeshModel(SpectralModel):
         c, truth = self._factors(params), np.asarray(truth, dtype=float)
         lt = np.log(truth)
         same = self._on(sphere)
+        extra = {}
         if same:
             lc, w = np.log(c), self.vertex_areas
         else:
-            lc = align_vertex_field(self.mesh, np.log(c), sphere, lt).values
-            w = vertex_areas(sphere)
+            al = align_vertex_field(self.mesh, np.log(c), sphere, lt)
+            lc, w = al.values, vertex_areas(sphere)
+            extra = {"log_rms_centred": al.centred_rms, "mobius_translation": float(np.linalg.norm(al.translation))}
         ct = np.exp(lc)
         return {"factor_error": float(np.sqrt(w @ (ct - truth) ** 2 / (w @ truth ** 2))),
                 "log_rms": float(np.sqrt(w @ (lc - lt) ** 2 / w.sum())),
                 "log_correlation": float(np.corrcoef(lc, lt)[0, 1]),
-                "aligned": not same,
+                "aligned": not same, **extra,
                 "fitted_range": [float(c.min()), float(c.max())], "truth_range": [float(truth.min()), float(truth.max())]}
 
     def _on(self, sphere) -> bool:

@@ -12,8 +12,11 @@ their Delaunay triangulation: no slivers beyond what the point set forces, and n
 
 Alignment.  A fit on another sphere mesh (adaptive, or a recursive pass) can be compared with a truth only up to
 what the spectrum cannot see: :func:`align_vertex_field` Möbius-centres the fitted mesh with the fitted area as
-weights (the truth's cMCF sphere is centred the same way), expands the fitted log factors in harmonics, and finds
-the element of O(3) that best maps them onto the truth's (octahedral seeds and their mirrors, refined locally).
+weights (the truth's cMCF sphere is centred the same way; moving the vertices, the factors take the change of the
+sphere's vertex areas, so that the surface stays), ranks the elements of the octahedral group and their mirrors on
+a harmonic expansion of the fitted log factors, and from the best refines a rotation and a Möbius translation
+together on the fitted field's interpolant: the least misfit over the group, where the centring alone would
+depend on how much of the area a coarse fit resolves.
 
 Discretization error.  :func:`eigenvalue_errors` compares a mesh's cotan spectrum (optionally with per-vertex
 factors) with that of its 4-to-1 midpoint subdivision, on which the eigenvalues of a P1 discretization have
@@ -35,6 +38,7 @@ from scipy.spatial.transform import Rotation
 from ..checks import check_float, check_int
 from ..errors import InvalidArgumentError, MeshError
 from ..sphere.evaluate import harmonic_matrix
+from ..sphere.mobius import mobius_translate
 from .bridge import fit_harmonic, mesh_band_limit
 from .cotan import cotan_stiffness, vertex_areas
 from .eigen import eigenpairs
@@ -217,41 +221,74 @@ class FieldAlignment:
     Attributes
     ----------
     values : (n_b,) array
-        The fitted log factors, Möbius-centred and mapped by the best element of O(3), at the reference vertices
-        (linear interpolation on the centred fitted mesh).
+        The fitted log factors, moved by the best Möbius map and element of O(3), at the reference vertices (linear
+        interpolation on the moved fitted mesh).
     rotation : (3, 3) array
-        The orthogonal matrix R (det ±1): values[j] = s_a(R x_j) on the centred fitted sphere.
+        The orthogonal matrix R (det ±1): values[j] = s_a'(R x_j) on the moved fitted sphere.
+    translation : (3,) array
+        The Möbius translation c (|c| < 1, :func:`~shspec.sphere.mobius.mobius_translate`) applied after the
+        centring: the part of the Möbius map that the best fit adds to the canonical normalization.
     mirrored : bool
         det R = −1.
     rms : float
         Area-weighted RMS of values − s_b over the reference sphere.
+    centred_rms : float
+        The same after the centring and the best element of O(3) alone (no translation): what a comparison of the
+        canonical representatives gives.
     """
 
     values: np.ndarray
     rotation: np.ndarray
+    translation: np.ndarray
     mirrored: bool
     rms: float
+    centred_rms: float
 
 
-def _interpolate(sphere: TriangleMesh, values: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """The linear interpolant of vertex values on a convex sphere mesh at the directions of points (q, 3): the face
-    the ray through each point crosses is found among the faces around its nearest vertices."""
-    n = sphere.nvertices
-    f = sphere.faces
-    incidence = sp.csr_matrix((np.ones(f.size), (f.ravel(), np.repeat(np.arange(len(f)), 3))), shape=(n, len(f)))
-    valence = np.diff(incidence.indptr)
-    table = np.full((n, valence.max()), -1)
-    for v in range(n):
-        table[v, :valence[v]] = incidence.indices[incidence.indptr[v]:incidence.indptr[v + 1]]
-    _, near = cKDTree(sphere.vertices).query(points, k=min(4, n))
-    cand = table[near].reshape(len(points), -1)
-    A = np.swapaxes(sphere.vertices[f[np.maximum(cand, 0)]], -1, -2)  # columns: the face's corners
-    lam = np.linalg.solve(A, np.broadcast_to(points[:, None, :, None], A.shape[:-1] + (1,)))[..., 0]
-    score = np.where(cand >= 0, lam.min(-1), -np.inf)  # the crossed face has all three coordinates ≥ 0
-    pick = np.argmax(score, axis=1)
-    rows = np.arange(len(points))
-    bary = lam[rows, pick] / lam[rows, pick].sum(-1, keepdims=True)
-    return np.einsum("ij,ij->i", bary, values[f[cand[rows, pick]]])
+class _Interpolant:
+    """The linear interpolant of vertex values on a convex sphere mesh whose vertices may move (a Möbius map keeps
+    the triangulation): the face the ray through a point crosses is found among the faces around its nearest
+    vertices."""
+
+    def __init__(self, sphere: TriangleMesh):
+        n, f = sphere.nvertices, sphere.faces
+        incidence = sp.csr_matrix((np.ones(f.size), (f.ravel(), np.repeat(np.arange(len(f)), 3))), shape=(n, len(f)))
+        valence = np.diff(incidence.indptr)
+        self.table = np.full((n, valence.max()), -1)
+        for v in range(n):
+            self.table[v, :valence[v]] = incidence.indices[incidence.indptr[v]:incidence.indptr[v + 1]]
+        self.faces = f
+
+    def __call__(self, vertices: np.ndarray, values: np.ndarray, points: np.ndarray) -> np.ndarray:
+        f = self.faces
+        _, near = cKDTree(vertices).query(points, k=min(4, len(vertices)))
+        cand = self.table[near].reshape(len(points), -1)
+        a, b, c = np.moveaxis(vertices[f[np.maximum(cand, 0)]], -2, 0)  # the candidate faces' corners
+        # the coordinates of each point in the basis of its face's corners (Cramer's rule with cross products)
+        bc, ca, ab = np.cross(b, c), np.cross(c, a), np.cross(a, b)
+        p = points[:, None, :]
+        lam = np.stack([np.sum(p * bc, -1), np.sum(p * ca, -1), np.sum(p * ab, -1)], -1) / np.sum(a * bc, -1)[..., None]
+        score = np.where(cand >= 0, lam.min(-1), -np.inf)  # the crossed face has all three coordinates ≥ 0
+        pick = np.argmax(score, axis=1)
+        rows = np.arange(len(points))
+        bary = lam[rows, pick] / lam[rows, pick].sum(-1, keepdims=True)
+        return np.einsum("ij,ij->i", bary, values[f[cand[rows, pick]]])
+
+
+_REFINED_SEEDS = 3  # octahedral seeds refined on the interpolant (the best by the harmonic misfit)
+# The interpolant is piecewise linear in the vertex positions: finite differences over a step well above the rounding
+# but below a triangle's size see its slope, and its kinks stop the steps short of tight tolerances (a few 1e-4 of
+# the misfit is far below what a comparison reports).
+_LSQ = {"diff_step": 1e-6, "xtol": 1e-6, "ftol": 1e-6, "max_nfev": 60}
+
+
+def _moved(sphere: TriangleMesh, s: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices of ``sphere`` moved by the Möbius translation c, and the log factors that keep the surface: its
+    vertex areas exp(s)·A stay, so s takes the log ratio of the sphere's vertex areas before and after (as cMCF
+    defines its factors)."""
+    x = mobius_translate(sphere.vertices, c)
+    x /= np.linalg.norm(x, axis=1)[:, None]
+    return x, s + np.log(vertex_areas(sphere) / vertex_areas(sphere.with_vertices(x)))
 
 
 def align_vertex_field(sphere_a: TriangleMesh, s_a, sphere_b: TriangleMesh, s_b, *, lmax: int | None = None,
@@ -259,10 +296,14 @@ def align_vertex_field(sphere_a: TriangleMesh, s_a, sphere_b: TriangleMesh, s_b,
     """Map log factors s_a on one unit-sphere mesh onto another mesh's vertices, up to Möbius maps and O(3).
 
     Sphere a is Möbius-centred with the areas exp(s_a)·(vertex areas) as weights (the truth's cMCF sphere is
-    centred with its surface's areas: the same normalization); s_a is expanded in harmonics of degree ``lmax``
-    (default: what sphere a determines, at most 10) and evaluated at R·x_b; R minimizes the area-weighted squared
-    difference to s_b over the 24 rotations of the octahedral group and their mirrors, refined by Nelder–Mead on
-    the best four.  The returned values are then the linear interpolant of s_a on the centred mesh at R·x_b.
+    centred with its surface's areas: the same normalization), its factors taking the change of the sphere's vertex
+    areas; s_a is expanded in harmonics of degree ``lmax`` (default: what sphere a determines, at most 10) and
+    evaluated at R·x_b, and the 24 rotations of the octahedral group and their mirrors are ranked by the
+    area-weighted squared difference to s_b.  From the best three the rotation and a Möbius translation are refined
+    together (least squares) on the area-weighted difference of the linear interpolant of s_a to s_b: the centring
+    alone depends on where the fit puts its area, and a field that misses part of it (the ears' peaks on a coarse
+    mesh) is centred elsewhere although it is close to the truth up to a Möbius map.  The returned values are that
+    interpolant at R·x_b.
 
     Parameters
     ----------
@@ -281,6 +322,7 @@ def align_vertex_field(sphere_a: TriangleMesh, s_a, sphere_b: TriangleMesh, s_b,
     s_a = _check_values(sphere_a, s_a, "s_a")
     s_b = _check_values(sphere_b, s_b, "s_b")
     centred = center_mesh(sphere_a, np.exp(s_a - s_a.max()) * vertex_areas(sphere_a)).sphere
+    s_a = s_a + np.log(vertex_areas(sphere_a) / vertex_areas(centred))  # the surface stays (see _moved)
     la = mesh_band_limit(sphere_a.nvertices, 10 if lmax is None else lmax)
     coef = fit_harmonic(centred, s_a, la).coefficients
     w = vertex_areas(sphere_b)
@@ -300,21 +342,26 @@ def align_vertex_field(sphere_a: TriangleMesh, s_a, sphere_b: TriangleMesh, s_b,
             R = rot.as_matrix() @ np.diag([1.0, 1.0, mirror])
             seeds.append((misfit(R), R))
     seeds.sort(key=lambda t: t[0])
-    best = seeds[0]
-    for _, R0 in seeds[:4]:
-        def cost(v, R0=R0):
-            return misfit(Rotation.from_rotvec(v).as_matrix() @ R0)
+    interpolant = _Interpolant(centred)
+    sw = np.sqrt(w)
+    # Bounds keep the translation well inside the ball, where it is a map of the sphere.
+    bounds = (np.r_[-np.inf, -np.inf, -np.inf, -0.5, -0.5, -0.5], np.r_[np.inf, np.inf, np.inf, 0.5, 0.5, 0.5])
+    best = None
+    for _, R0 in seeds[:_REFINED_SEEDS]:
+        def residual(v, R0=R0):
+            x, s = _moved(centred, s_a, v[3:])
+            return sw * (interpolant(x, s, xb @ (Rotation.from_rotvec(v[:3]).as_matrix() @ R0).T) - s_b)
 
-        res = scipy.optimize.minimize(cost, np.zeros(3), method="Nelder-Mead",
-                                      options={"xatol": 1e-4, "fatol": 1e-10, "maxiter": 200})
-        if res.fun < best[0]:
-            best = (float(res.fun), Rotation.from_rotvec(res.x).as_matrix() @ R0)
-    R = best[1]
-    # The expansion only finds R; the values themselves are the fitted field's linear interpolant on the centred
-    # mesh (an expansion of degree ≤ 10 would blur the sharp features, e.g. the bunny's ears, by itself).
-    out = _interpolate(centred, s_a, xb @ R.T)
-    rms = float(np.sqrt(w @ (out - s_b) ** 2))
-    return FieldAlignment(values=out, rotation=R, mirrored=bool(np.linalg.det(R) < 0), rms=rms)
+        start = residual(np.zeros(6))
+        res = scipy.optimize.least_squares(residual, np.zeros(6), bounds=bounds, **_LSQ)
+        if best is None or 2 * res.cost < best[0]:
+            best = (2 * res.cost, res.x, R0, residual, res.fun / sw + s_b)
+    _, v, R0, residual, out = best
+    R = Rotation.from_rotvec(v[:3]).as_matrix() @ R0
+    # the canonical representatives' misfit: the centring and the best rotation, no translation
+    centred = scipy.optimize.least_squares(lambda u: residual(np.r_[u, 0.0, 0.0, 0.0]), v[:3], **_LSQ)
+    return FieldAlignment(values=out, rotation=R, translation=v[3:].copy(), mirrored=bool(np.linalg.det(R) < 0),
+                          rms=float(np.sqrt(w @ (out - s_b) ** 2)), centred_rms=float(np.sqrt(2 * centred.cost)))
 
 
 def eigenvalue_errors(mesh: TriangleMesh, k: int, factors=None) -> tuple[np.ndarray, np.ndarray]:
