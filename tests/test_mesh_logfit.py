@@ -175,7 +175,7 @@ def test_cli_fits_log_factors_with_auto_numeig_and_adaptive(tmp_path):
     assert c.shape == (42,) and c.min() == pytest.approx(summary["fitted_range"][0])
     out2 = tmp_path / "adaptive"
     assert main(["fit", "--target", "star:3,3,0.5", "--subdivisions", "2", "--model", "mesh", "--numeig", "20",
-                 "--adaptive", "--adaptive-start", "1", "--reg", "0.01", "--starts", "1", "--max-iter", "3",
+                 "--adaptive", "--adaptive-start", "1", "--adaptive-growth", "2", "--reg", "0.01", "--starts", "1", "--max-iter", "3",
                  "--quiet", "--out", str(out2)]) == 0
     summary = json.loads((out2 / "summary.json").read_text())
     assert summary["adaptive"]["sizes"] == [42, 84, 162] and summary["aligned"] is True

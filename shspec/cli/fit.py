@@ -158,6 +158,8 @@ def register(subparsers) -> None:
                    "target's cMCF sphere and refine it where the fitted factors are large or vary fast, up to the "
                    "target mesh's vertex count; stages and sizes go into summary.json")
     p.add_argument("--adaptive-start", type=int, default=2, help="icosphere subdivisions of the first adaptive stage")
+    p.add_argument("--adaptive-growth", type=float, default=AdaptiveOptions.growth,
+                   help="vertex count ratio between adaptive stages (small steps let the mesh follow the fit)")
     p.add_argument("--starts", type=int, default=d.starts, help="random starts")
     p.add_argument("--seed", type=int, default=d.seed, help="random seed")
     p.add_argument("--optimizer", choices=OPTIMIZERS, default=None,
@@ -327,8 +329,8 @@ def _fit(args) -> int:
         if args.model != "mesh" or init is not None or args.workers or args.scheduler or args.resume:
             raise InvalidArgumentError("--adaptive is a mesh fit (--model mesh) without --init, --workers, "
                                        "--scheduler or --resume")
-        adaptive = adaptive_fit(target, AdaptiveOptions(subdivisions=args.adaptive_start, reg_kind=args.reg_kind,
-                                                        fit=options),
+        adaptive = adaptive_fit(target, AdaptiveOptions(subdivisions=args.adaptive_start, growth=args.adaptive_growth,
+                                                        reg_kind=args.reg_kind, fit=options),
                                 log=None if args.quiet else (lambda msg: print(msg, file=sys.stderr)))
         result, extra["adaptive"] = adaptive.result, adaptive.to_dict()
     elif args.workers is None and args.scheduler is None:
