@@ -352,7 +352,6 @@ def align_vertex_field(sphere_a: TriangleMesh, s_a, sphere_b: TriangleMesh, s_b,
             x, s = _moved(centred, s_a, v[3:])
             return sw * (interpolant(x, s, xb @ (Rotation.from_rotvec(v[:3]).as_matrix() @ R0).T) - s_b)
 
-        start = residual(np.zeros(6))
         res = scipy.optimize.least_squares(residual, np.zeros(6), bounds=bounds, **_LSQ)
         if best is None or 2 * res.cost < best[0]:
             best = (2 * res.cost, res.x, R0, residual, res.fun / sw + s_b)
