@@ -358,9 +358,9 @@ def align_vertex_field(sphere_a: TriangleMesh, s_a, sphere_b: TriangleMesh, s_b,
     _, v, R0, residual, out = best
     R = Rotation.from_rotvec(v[:3]).as_matrix() @ R0
     # the canonical representatives' misfit: the centring and the best rotation, no translation
-    centred = scipy.optimize.least_squares(lambda u: residual(np.r_[u, 0.0, 0.0, 0.0]), v[:3], **_LSQ)
+    canonical = scipy.optimize.least_squares(lambda u: residual(np.r_[u, 0.0, 0.0, 0.0]), v[:3], **_LSQ)
     return FieldAlignment(values=out, rotation=R, translation=v[3:].copy(), mirrored=bool(np.linalg.det(R) < 0),
-                          rms=float(np.sqrt(w @ (out - s_b) ** 2)), centred_rms=float(np.sqrt(2 * centred.cost)))
+                          rms=float(np.sqrt(w @ (out - s_b) ** 2)), centred_rms=float(np.sqrt(2 * canonical.cost)))
 
 
 def eigenvalue_errors(mesh: TriangleMesh, k: int, factors=None) -> tuple[np.ndarray, np.ndarray]:
