@@ -11,7 +11,9 @@ import pytest
 from shspec.cli import main
 from shspec.errors import InvalidArgumentError
 from shspec.experiments import EXPERIMENTS, run_experiment
+from shspec import HarmonicModel
 from shspec.inverse import load_result_summary
+from shspec.inverse.identifiability import identifiability
 from shspec.report import build_report
 
 
@@ -71,14 +73,24 @@ def test_pl_perturbation_error_grows_with_p(runs):
 
 def test_sh_inverse_reports_every_fit(runs):
     numbers = json.loads((runs / "sh-inverse" / "meta.json").read_text())["numbers"]
-    assert set(numbers) == {"raw", "regularized", "structured"}
+    config = json.loads((runs / "sh-inverse" / "config.json").read_text())
+    model = HarmonicModel(config["lmax"], config["lmax_factor"])
+    assert set(numbers) == {"raw", "regularized", "structured", "search"}
     for name, v in numbers.items():
-        best = min(load_result_summary(runs / "sh-inverse" / f"fit_{name}.h5")["starts"], key=lambda s: s.energy)
+        summary = load_result_summary(runs / "sh-inverse" / f"fit_{name}.h5")
+        best = min(summary["starts"], key=lambda s: s.energy)
         assert v["energy"] == best.energy and v["iterations"] == best.iterations > 0
         # the spectral energy is recomputed from the best start's eigenvalues, without the regularizer
-        target = load_result_summary(runs / "sh-inverse" / f"fit_{name}.h5")["target"][:best.eigenvalues.size]
-        expected = 0.5 * np.sum(((best.eigenvalues[1:] - target[1:]) / target[1:]) ** 2)
+        target = summary["target"][:best.eigenvalues.size]
+        relative = (best.eigenvalues - target) / np.where(target > 0, target, 1.0)
+        expected = 0.5 * np.sum(relative[1:] ** 2)
         assert v["spectral_energy"] == pytest.approx(expected, rel=1e-12)
+        # the error the residual implies, recomputed from the saved parameters and eigenvalues
+        relative[0] = 0.0
+        again = identifiability(model, best.params, target.size, residuals=relative)
+        assert 0 < v["estimated_error"] == pytest.approx(again.estimated_error, rel=1e-6)
+    # the default search (degree ramp, then a hop) ends far below the single-stage fit
+    assert numbers["search"]["spectral_energy"] < 1e-3 * numbers["raw"]["spectral_energy"]
     assert numbers["raw"]["spectral_energy"] == pytest.approx(numbers["raw"]["energy"], rel=1e-12)
 
 
