@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -42,6 +41,9 @@ from shspec.inverse import plots  # noqa: E402
 from shspec.mesh.figures import plot_spectra_validation, plot_vertex_factors  # noqa: E402
 from shspec.experiments.common import load_mesh_area_4pi  # noqa: E402
 from shspec.experiments.fitting import vertex_factor_errors  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import machine_info  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "results" / "bench_inverse.json"
@@ -142,9 +144,12 @@ def bench_study(report, starts, workers):
     model = HarmonicModel(30, 15)
     section = {"setting": "Lb=30, La=15 (256 coefficients), 256 eigenvalues, target: the blob, default options"}
     for reg in (0.0, 1e-6):
+        load, t0 = list(os.getloadavg()), time.perf_counter()
         with make_executor(workers) as ex:
             result = fit(target, model, FitOptions(starts=starts, reg=reg), executor=ex)
-        section[f"R={reg:g}"] = _goal_summary(result, truth, f"FitOptions(starts={starts}, reg={reg:g})")
+        section[f"R={reg:g}"] = {"workers": workers, "wall_seconds": time.perf_counter() - t0,
+                                 "load_average_before_after": [load, list(os.getloadavg())],
+                                 **_goal_summary(result, truth, f"FitOptions(starts={starts}, reg={reg:g})")}
         report["study"] = section
         _save(report)
 
@@ -153,9 +158,12 @@ def bench_goal_degree10(report, starts, workers):
     """Issue 14's first goal: a random centred rho of degree 10, 300 eigenvalues, Lb = 24, default options."""
     truth = random_centred_coefficients(1, 10, 0.2)
     target = harmonic_target(truth, 24, 300)
+    load, t0 = list(os.getloadavg()), time.perf_counter()
     with make_executor(workers) as ex:
         result = fit(target, HarmonicModel(24, 10), FitOptions(starts=starts), executor=ex)
     report["goal_degree10"] = {"setting": "random centred rho (seed 1, degree 10), Lb=24, 300 eigenvalues",
+                               "workers": workers, "wall_seconds": time.perf_counter() - t0,
+                               "load_average_before_after": [load, list(os.getloadavg())],
                                **_goal_summary(result, truth, f"FitOptions(starts={starts})")}
     _save(report)
 
@@ -348,8 +356,7 @@ def main(argv=None):
                         help="starts of the goal sections (default 4, 2 with --quick; each section records it)")
     args = parser.parse_args(argv)
     FIGURES.mkdir(parents=True, exist_ok=True)
-    report = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "python": sys.version.split()[0],
-                          "load_average_start": list(os.getloadavg()), "blas_threads": 1},
+    report = {"machine": {**machine_info(), "load_average_start": list(os.getloadavg()), "blas_threads": 1},
               "shspec": __version__, "quick": args.quick}
     sections = args.sections.split(",")
     report["ran"] = sections

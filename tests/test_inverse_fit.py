@@ -112,10 +112,21 @@ def test_degree_ramp_raises_degree_and_count_together():
     capped = degree_ramp(120, 6, stage_max_iter=7)
     assert [(s.lmax_factor, s.numeig) for s in capped] == [(s.lmax_factor, s.numeig) for s in stages]
     assert [s.max_iter for s in capped] == [7] * 6 + [None]  # the last stage runs to convergence
+    assert not any(s.hops for s in capped)
+    hopping = degree_ramp(120, 6, stage_max_iter=7, hop_degree=4)
+    assert [(s.lmax_factor, s.numeig) for s in hopping] == [(s.lmax_factor, s.numeig) for s in stages]
+    # the stage that reaches degree 4 runs to convergence and hops; the others are as before
+    assert [(s.max_iter, s.hops) for s in hopping] == [(7, False)] * 2 + [(None, True)] + [(7, False)] * 3 + [
+        (None, False)]
+    assert not any(s.hops for s in degree_ramp(40, 6, hop_degree=6))  # 6:64 is beyond 40 eigenvalues
     with pytest.raises(InvalidArgumentError):
         FitOptions(schedule=(Stage(6), Stage(4)))
     with pytest.raises(InvalidArgumentError):
         degree_ramp(120, 6, stage_max_iter=0)
+    with pytest.raises(InvalidArgumentError):
+        degree_ramp(120, 6, hop_degree=1)
+    with pytest.raises(InvalidArgumentError):
+        Stage(6, 16, hops="yes")
 
 
 def test_escape_moves_keep_power_and_gauge_and_undo_themselves():
@@ -152,9 +163,28 @@ def test_basin_hop_is_accepted_and_leaves_a_wrongly_turned_block(small):
                                                    hop_iter=3))
     progress, ev = _state_at(problem, wrong)
     assert ev.relative_residual > 1e-4
-    _basin_hop(problem, progress, "energy_tol")
+    _basin_hop(problem, progress, "energy_tol", 0)
     assert progress.relative_residual < 1e-10
     assert align(ConformalFactor(progress.params), truth).relative_error < 1e-8
+
+
+@pytest.mark.parametrize("hops", [True, False])
+def test_a_stage_with_hops_leaves_its_minimum_before_the_next_stage(small, hops):
+    """Stage.hops runs the basin hops at the end of an intermediate stage: from a half-turned degree-3 block the
+    first stage (20 eigenvalues) ends at the truth with them and stays wrong without them."""
+    _, model = small
+    target = harmonic_target(blob_factor(), 8, 25)
+    truth = blob_factor().coefficients
+    wrong = model.escape_moves(truth)[3]
+    opts = FitOptions(starts=1, max_iter=20, basin_hops=1, hop_iter=3,
+                      schedule=(Stage(6, 20, hops=hops), Stage(6, 25, max_iter=2)))
+    history = fit(target, model, opts, init=wrong).best.history
+    first = history[history[:, 0] == 0]
+    assert first.shape[0] > 1
+    if hops:
+        assert first[-1, 2] < 1e-10
+    else:
+        assert first[-1, 2] > 1e-5
 
 
 @pytest.mark.parametrize("optimizer", ["lm", "lbfgs", "gd"])
@@ -466,7 +496,7 @@ def test_grid_hop_undoes_a_quarter_turn_when_the_cheap_moves_find_nothing(monkey
                                                        hop_iter=3, hop_grid=grid))
         progress, ev = _state_at(problem, wrong)
         assert ev.relative_residual > 1e-3
-        _basin_hop(problem, progress, "energy_tol")
+        _basin_hop(problem, progress, "energy_tol", 0)
         ends[grid] = (progress.relative_residual, align(ConformalFactor(progress.params), truth).relative_error)
     assert ends[False][0] == ev.relative_residual
     assert ends[True][0] < 1e-10 and ends[True][1] < 1e-8

@@ -67,7 +67,8 @@ def test_bad_targets(tmp_path):
 def test_schedule_syntax():
     assert parse_schedule("2,4, 8") == (Stage(2), Stage(4), Stage(8))
     assert parse_schedule("6:16,6:120") == (Stage(6, 16), Stage(6, 120))
-    for text in ("", "2;4", "2:3:4", "a"):
+    assert parse_schedule("2:16, 6:64h,6") == (Stage(2, 16), Stage(6, 64, hops=True), Stage(6))
+    for text in ("", "2;4", "2:3:4", "a", "6:64x", "h", "6h:64"):
         with pytest.raises(InvalidArgumentError):
             parse_schedule(text)
     assert [s.numeig for s in numeig_ramp(120)] == [16, 36, 64, 100, 120]

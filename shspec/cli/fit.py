@@ -19,7 +19,7 @@ from ..galerkin import HarmonicModel
 from ..galerkin.planning import plan_numeig
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions, parse_schedule
-from ..inverse.schedule import DEFAULT_STAGE_MAX_ITER, degree_ramp, numeig_ramp
+from ..inverse.schedule import DEFAULT_STAGE_MAX_ITER, default_hop_degree, degree_ramp, numeig_ramp
 from ..targets import TARGET_SOURCES, Target, parse_target, read_spectrum
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.io import load_mesh
@@ -121,6 +121,11 @@ def register(subparsers) -> None:
                    "succeed; the numeig ramp for meshes), 'degree-ramp' (the same ramp), 'ramp' "
                    "(numeig 16, 36, 64, ... at full degree: 2 of 8), 'none' (one stage: 0 of 8), degrees "
                    "'2,4,8,15' or degree:numeig pairs '6:16,6:64,6:120'")
+    p.add_argument("--hop-degree", type=int, default=None, metavar="D",
+                   help="with --schedule auto or degree-ramp (harmonic fits): the stage that raises the degree to D "
+                   "runs to convergence on a basis good to the success tolerance, then the basin hops, before "
+                   "the higher degrees are added: a global search while the stage is small (0: hops after the last "
+                   "stage only; default: 6 when --lmax-factor is above 6)")
     p.add_argument("--basin-hops", type=int, default=d.basin_hops,
                    help="after the last stage, up to N accepted escape moves (harmonic fits: half-turns and sign "
                    "flips of single degree blocks, then the octahedral grid of every block, see --hop-grid) to "
@@ -195,15 +200,19 @@ def register(subparsers) -> None:
     p.set_defaults(func=_fit)
 
 
-def _schedule(text: str, numeig: int, lmax_factor: int):
-    if text == "auto":
+def _schedule(text: str, numeig: int, lmax_factor: int, hop_degree: int | None, harmonic: bool):
+    if hop_degree is not None and (text not in ("auto", "degree-ramp") or not harmonic):
+        raise InvalidArgumentError(f"--hop-degree shapes the degree ramp of a harmonic fit (--schedule auto or "
+                                   f"degree-ramp); with --schedule {text!r} mark the stage to hop as 'L:Kh'")
+    if text == "auto" and hop_degree is None:
         return None
+    if text in ("auto", "degree-ramp"):
+        return degree_ramp(numeig, lmax_factor, stage_max_iter=DEFAULT_STAGE_MAX_ITER,
+                           hop_degree=default_hop_degree(lmax_factor) if hop_degree is None else hop_degree or None)
     if text == "none":
         return ()
     if text == "ramp":
         return numeig_ramp(numeig)
-    if text == "degree-ramp":
-        return degree_ramp(numeig, lmax_factor, stage_max_iter=DEFAULT_STAGE_MAX_ITER)
     return parse_schedule(text)
 
 
@@ -314,7 +323,9 @@ def _fit(args) -> int:
     if not args.log_factors and args.adaptive:
         raise InvalidArgumentError("--adaptive fits log factors (refinement follows log c); drop --no-log-factors")
     options = FitOptions(optimizer=args.optimizer, weights=args.weights, reg=args.reg, area=args.area,
-                         schedule=_schedule(args.schedule, target.numeig, args.lmax_factor), starts=args.starts,
+                         schedule=_schedule(args.schedule, target.numeig, args.lmax_factor, args.hop_degree,
+                                            args.model != "mesh"),
+                         starts=args.starts,
                          seed=args.seed, start_amplitude=args.amplitude, max_iter=args.max_iter,
                          basin_hops=args.basin_hops, hop_grid=args.hop_grid, hop_tries=args.hop_tries,
                          hop_extend=args.hop_extend,

@@ -42,38 +42,48 @@ class Stage:
         Number of eigenvalues matched (λ₀ = 0 included); None: all of the target's.
     max_iter : int or None
         Iterations of this stage; None: :attr:`FitOptions.max_iter`.
+    hops : bool
+        Run the basin hops (:attr:`FitOptions.basin_hops`) at the end of this stage too, not only after the last
+        one: a global search while the problem is small and its moves are cheap (see :func:`degree_ramp`).
     """
 
     lmax_factor: int | None = None
     numeig: int | None = None
     max_iter: int | None = None
+    hops: bool = False
 
     def __post_init__(self):
         check_int(self.lmax_factor, "Stage.lmax_factor", allow_none=True, minimum=0)
         check_int(self.numeig, "Stage.numeig", allow_none=True, minimum=2)
         check_int(self.max_iter, "Stage.max_iter", allow_none=True, minimum=1)
+        if not isinstance(self.hops, bool):
+            raise InvalidArgumentError(f"Stage.hops must be True or False, got {self.hops!r}")
 
 
 def parse_schedule(text: str) -> tuple[Stage, ...]:
-    """Stages from the command-line syntax ``"2,4,8,15"`` (degrees) or ``"2:40,4:80,8"`` (degree:numeig).
+    """Stages from the command-line syntax ``"2,4,8,15"`` (degrees) or ``"2:40,4:80,8"`` (degree:numeig); an
+    entry ending in ``h`` (``"6:64h"``) runs the basin hops at the end of its stage (:attr:`Stage.hops`).
 
     Raises
     ------
     InvalidArgumentError
-        If an entry is not ``L`` or ``L:K`` with integers.
+        If an entry is not ``L`` or ``L:K`` with integers, optionally followed by ``h``.
     """
     if not isinstance(text, str) or not text.strip():
         raise InvalidArgumentError(f"a schedule is a comma-separated list like '2,4,8,15', got {text!r}")
     stages = []
     for item in text.split(","):
-        parts = item.strip().split(":")
+        entry = item.strip()
+        hops = entry.endswith("h")
+        parts = entry.removesuffix("h").split(":")
         try:
             nums = [int(p) for p in parts]
         except ValueError:
-            raise InvalidArgumentError(f"schedule entry {item!r} is not 'L' or 'L:K' with integers") from None
+            raise InvalidArgumentError(f"schedule entry {item!r} is not 'L' or 'L:K' with integers "
+                                       "(optionally followed by 'h')") from None
         if len(nums) not in (1, 2):
             raise InvalidArgumentError(f"schedule entry {item!r} is not 'L' or 'L:K'")
-        stages.append(Stage(lmax_factor=nums[0], numeig=nums[1] if len(nums) == 2 else None))
+        stages.append(Stage(lmax_factor=nums[0], numeig=nums[1] if len(nums) == 2 else None, hops=hops))
     return tuple(stages)
 
 
@@ -105,7 +115,8 @@ class FitOptions:
         Every stage but the last runs on the coarsest discretization of the model on which its eigenvalues agree
         with the model's own to this relative tolerance (:meth:`~shspec.model.SpectralModel.stage_basis`; harmonic
         models: a smaller basis degree, chosen once per fit at a reference ρ); the last stage and the basin hops use
-        the model itself.  None: every stage on the model's own.  The stages' optima are not the truth's
+        the model itself; a stage with :attr:`Stage.hops` gets the tolerance ``success_tol`` (if smaller), so that
+        its hops can tell success.  None: every stage on the model's own.  The stages' optima are not the truth's
         truncations anyway (at degree 10 they end at residuals of 1e-4 … 1e-3).  For the blob at La = 15 with
         K = 704 (Lb 42) the bases run from degree 7 (16 eigenvalues) to 40 (576), and the stages up to 400
         eigenvalues were done 2.6 min after launch (choosing the bases, 18 s, included) against 16.5 min on Lb
@@ -140,8 +151,9 @@ class FitOptions:
         On the blob at La = 15 from 1e-3 off the truth (benchmarks/results/bench_convergence.json) it took the
         relative residual to 3e-15 in 28 iterations at K = 600 (Lb 40), where plain LM was at 3e-9 after 60.
     basin_hops : int
-        After the last stage, while the relative residual is above success_tol, up to this many basin hops (0:
-        none).  A hop first tries the model's cheap moves (power-preserving moves of one degree block: half-turns
+        After the last stage, and after every stage with :attr:`Stage.hops` (in the default degree ramp of a fit
+        above degree 6, the stage of degree 6), while the relative residual is above success_tol, up to this many
+        basin hops (0: none).  A hop first tries the model's cheap moves (power-preserving moves of one degree block: half-turns
         about the axes, signs of odd blocks), and when none of them lowers the energy, the grid moves of
         ``hop_grid``.  Each move tried gets ``hop_iter`` iterations, and the first that lowers the energy is
         refitted to convergence.  The hops stop at success, after ``basin_hops`` accepted moves, or when no move

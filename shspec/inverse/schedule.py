@@ -25,10 +25,13 @@ from .parametrization import Parametrization
 from ..targets import Target
 
 __all__ = ["FitProblem", "run_start", "StartProgress", "numeig_ramp", "degree_ramp", "default_schedule",
-           "DEFAULT_STAGE_MAX_ITER"]
+           "default_hop_degree", "DEFAULT_STAGE_MAX_ITER", "DEFAULT_HOP_DEGREE"]
 
 #: Iterations of every stage but the last in the default degree ramp (see :func:`degree_ramp`).
 DEFAULT_STAGE_MAX_ITER = 40
+
+#: The degree whose stage of the default degree ramp hops (see :func:`degree_ramp`), in fits of higher degree.
+DEFAULT_HOP_DEGREE = 6
 
 #: Size of the perturbation given to the parameters a stage adds, relative to the one of a random start: enough to
 #: leave the parity saddle, small enough not to undo what the earlier stages found.
@@ -66,7 +69,8 @@ def numeig_ramp(numeig: int, lmax_factor: int | None = None, first: int = 16) ->
     return tuple(Stage(lmax_factor=lmax_factor, numeig=k) for k in [*ks, int(numeig)])
 
 
-def degree_ramp(numeig: int, lmax_factor: int, stage_max_iter: int | None = None) -> tuple[Stage, ...]:
+def degree_ramp(numeig: int, lmax_factor: int, stage_max_iter: int | None = None,
+                hop_degree: int | None = None) -> tuple[Stage, ...]:
     """A schedule that raises the factor's degree and the eigenvalue count together, then matches more eigenvalues.
 
     Stage l = 2, ..., La fits degree l to (l + 2)² eigenvalues (16, 25, 36, ...), each stage overdetermined; then
@@ -90,10 +94,17 @@ def degree_ramp(numeig: int, lmax_factor: int, stage_max_iter: int | None = None
         of 12 successes at a median 116 s per start (benchmarks/results/bench_global_search.json), where the
         uncapped ramp had given 0 of 4 at a median 163 s (``goal_degree10`` in bench_inverse.json of commit
         c0e95a5); on the blob (La 6, K 120) 7 of 8 either way.
+    hop_degree : int, optional
+        The stage that raises the degree to this one runs to convergence (``FitOptions.max_iter``) and then the
+        basin hops (:attr:`Stage.hops`): the global search on the low degrees while their stage is small, before
+        the higher degrees are added.  None: hops after the last stage only.  No stage hops if that stage would
+        match ``numeig`` eigenvalues or more.
     """
     numeig, lmax_factor = check_int(numeig, "numeig", minimum=2), check_int(lmax_factor, "lmax_factor", minimum=2)
     stage_max_iter = check_int(stage_max_iter, "stage_max_iter", allow_none=True, minimum=1)
-    stages = [Stage(lmax_factor=l, numeig=(l + 2) ** 2, max_iter=stage_max_iter)
+    hop_degree = check_int(hop_degree, "hop_degree", allow_none=True, minimum=2)
+    stages = [Stage(lmax_factor=l, numeig=(l + 2) ** 2, max_iter=None if l == hop_degree else stage_max_iter,
+                    hops=l == hop_degree)
               for l in range(2, int(lmax_factor) + 1) if (l + 2) ** 2 < numeig]
     j = int(lmax_factor) + 3
     j += j % 2
@@ -118,7 +129,15 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
     levels = model.levels()
     if not levels:
         return numeig_ramp(numeig)
-    return degree_ramp(numeig, levels[-1], stage_max_iter=DEFAULT_STAGE_MAX_ITER)
+    return degree_ramp(numeig, levels[-1], stage_max_iter=DEFAULT_STAGE_MAX_ITER,
+                       hop_degree=default_hop_degree(levels[-1]))
+
+
+def default_hop_degree(lmax_factor: int) -> int | None:
+    """The degree whose stage hops in the default degree ramp of a fit of degree ``lmax_factor``
+    (:data:`DEFAULT_HOP_DEGREE`, or None when the fit's own degree is not above it: its last stage hops anyway)."""
+    lmax_factor = check_int(lmax_factor, "lmax_factor", minimum=0)
+    return DEFAULT_HOP_DEGREE if DEFAULT_HOP_DEGREE is not None and lmax_factor > DEFAULT_HOP_DEGREE else None
 
 
 class FitProblem:
@@ -174,8 +193,11 @@ class FitProblem:
         self.area = target.area_estimate()
         # chosen here, once, at a reference: a start's path may then not depend on where the fit runs
         tol = options.stage_basis_tol
+        # a stage that hops tests success at success_tol: on a basis only good to 1e-5 the truth itself would fail
+        # it (the blob's 6:64 stage on Lb' = 14 ends every start at 1.5e-6, and its hops go on)
         self.bases = [None if tol is None or s == len(self.stages) - 1
-                      else model.stage_basis(st.lmax_factor, st.numeig or target.numeig, tol)
+                      else model.stage_basis(st.lmax_factor, st.numeig or target.numeig,
+                                             min(tol, options.success_tol) if st.hops else tol)
                       for s, st in enumerate(self.stages)]
         if options.progress and any(b is not None for b in self.bases):
             print("stage bases (degree:eigenvalues -> basis degree): " + ", ".join(
@@ -312,20 +334,24 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
         progress.state = None
         if opt.orient_blocks and _raises_level(problem, s) and progress.relative_residual > opt.success_tol:
             _orient_new_block(problem, progress, s)
-        params = progress.params
         if opt.progress:
             basis = "" if problem.bases[s] is None else f", basis degree {problem.bases[s]}"
             print(f"\r  start {progress.index} stage {s} ({_level_text(obj.model, problem.level(s))}{obj.target.size} "
                   f"eigenvalues{basis}): "
                   f"{progress.status} after {optimizer.iteration} iterations, max rel. residual "
                   f"{optimizer.ev.relative_residual:.3e}", file=sys.stderr, flush=True)
+        if (s < last and problem.stages[s].hops and opt.basin_hops
+                and progress.relative_residual > opt.success_tol):
+            # not checkpointed apart: a resume inside these hops runs stage s again, which repeats them exactly
+            progress.status = _basin_hop(problem, progress, progress.status, s)
+        params = progress.params
     if opt.basin_hops and progress.relative_residual > opt.success_tol:
         if progress.stage <= last:
             # checkpoint the end of the stages, so that a resume repeats only the (deterministic) hops
             progress.stage, progress.base = last + 1, progress.params
             if checkpoint is not None and opt.checkpoint_every:
                 checkpoint(progress)
-        progress.status = _basin_hop(problem, progress, progress.status)
+        progress.status = _basin_hop(problem, progress, progress.status, last)
     return progress.result(progress.status, time.perf_counter() - t0, opt.success_tol)
 
 
@@ -414,18 +440,18 @@ def _orient_new_block(problem: FitProblem, progress: StartProgress, s: int) -> N
                  else "none lowers the energy"), file=sys.stderr, flush=True)
 
 
-def _basin_hop(problem: FitProblem, progress: StartProgress, status: str) -> str:
-    """Leave a local minimum by the model's escape moves (see :attr:`FitOptions.basin_hops`).
+def _basin_hop(problem: FitProblem, progress: StartProgress, status: str, s: int) -> str:
+    """Leave a local minimum of stage s by the model's escape moves (see :attr:`FitOptions.basin_hops`).
 
     The moves keep the model's invariant (harmonic models: the per-degree power).  Each hop is :func:`_hop_once` on
-    the last stage with the cheap moves (half-turns and sign flips of single degree blocks), and, when none of them
+    stage s with the cheap moves (half-turns and sign flips of single degree blocks), and, when none of them
     lowers the energy and ``hop_grid`` is set, with the grid moves (every block through the octahedral group).
     The hops stop at success, after ``basin_hops`` accepted moves, or when no move lowers the energy.
     Deterministic.  Models without moves make this a no-op.
     """
     opt = problem.options
-    s = len(problem.stages) - 1
     level = problem.level(s)
+    where = "" if s == len(problem.stages) - 1 else f"stage {s} "
     for hop in range(opt.basin_hops):
         moves = problem.model.escape_moves(progress.params, level)
         accepted, status = _hop_once(problem, progress, s, moves, status)
@@ -436,7 +462,7 @@ def _basin_hop(problem: FitProblem, progress: StartProgress, status: str) -> str
                 accepted, status = _hop_once(problem, progress, s, grid, status)
                 tried += f", then {min(len(grid), opt.hop_tries)} of {len(grid)} grid moves"
         if opt.progress:
-            print(f"  start {progress.index} basin hop {hop + 1}: "
+            print(f"  start {progress.index} {where}basin hop {hop + 1}: "
                   + (f"a move was accepted, {status}, max rel. residual {progress.relative_residual:.3e}" if accepted
                      else f"none of {tried} lowers the energy"), file=sys.stderr, flush=True)
         if not accepted or progress.relative_residual <= opt.success_tol:
