@@ -285,6 +285,27 @@ def test_cli_degree_ramp_with_basin_hops(tmp_path):
     assert FitOptions().hop_extend == 45
 
 
+def test_cli_hop_degree_marks_the_stage_that_hops(tmp_path, capsys):
+    from shspec.inverse import default_schedule, degree_ramp
+    from shspec.inverse.schedule import DEFAULT_STAGE_MAX_ITER
+
+    assert main(["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "30", "--starts", "1",
+                 "--max-iter", "3", "--basin-hops", "1", "--hop-tries", "2", "--hop-degree", "3",
+                 "--out", str(tmp_path), "--quiet"]) == 0
+    stages = json.loads((tmp_path / "summary.json").read_text())["options"]["schedule"]
+    assert [(s["lmax_factor"], s["numeig"], s["max_iter"], s["hops"]) for s in stages] == [
+        (2, 16, DEFAULT_STAGE_MAX_ITER, False), (3, 25, None, True), (6, 30, None, False)]
+    # the default hops at degree 6 in fits above degree 6 only, and the command line's default is the library's
+    assert default_schedule(HarmonicModel(12, 8), 150) == degree_ramp(150, 8, DEFAULT_STAGE_MAX_ITER, hop_degree=6)
+    assert not any(s.hops for s in default_schedule(HarmonicModel(8, 6), 120))
+    # --hop-degree shapes only the degree ramp of a harmonic fit
+    for extra in (["--schedule", "none"], ["--schedule", "2,6"], ["--model", "mesh", "--target", "star:3,3,0.4"]):
+        args = ["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "1",
+                "--max-iter", "1", "--hop-degree", "3", "--out", str(tmp_path / "bad"), "--quiet", *extra]
+        assert main(args) == 1
+        assert "--hop-degree" in capsys.readouterr().err
+
+
 def test_cli_mesh_fit_with_default_schedule(tmp_path):
     """The command line's defaults work for a mesh model too (the numeig ramp, no levels), and the summary holds
     the per-vertex comparison with the cMCF factors."""
