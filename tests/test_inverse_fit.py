@@ -215,6 +215,38 @@ def test_resume_from_checkpoint_equals_uninterrupted_run(small, tmp_path, monkey
         np.testing.assert_allclose(b.history[:, 1:], a.history[:, 1:], rtol=1e-10, atol=1e-300)
 
 
+def test_resume_after_ctrl_c_in_the_hops_of_a_stage_equals_uninterrupted_run(small, tmp_path, monkeypatch):
+    """Ctrl-C in the hops after an intermediate stage (Stage.hops), after one of them may have moved the state: the
+    resumed fit runs that stage again from its start and ends exactly where an uninterrupted one does."""
+    from shspec.inverse import schedule
+
+    target, model = small
+    opts = FitOptions(starts=2, seed=3, max_iter=5, schedule=(Stage(4, hops=True), Stage(6)), basin_hops=2,
+                      hop_iter=2, hop_tries=3, checkpoint_every=2, checkpoint_path=str(tmp_path / "ck.h5"))
+    reference = fit(target, model, FitOptions(**{**opts.__dict__, "checkpoint_every": 0, "checkpoint_path": None}))
+    assert any(row[0] == 0 for row in reference.starts[1].history[6:])  # stage 0 of start 1 did hop
+
+    original = schedule._hop_once
+    calls = {"n": 0}
+
+    def interrupted_hop(problem, progress, s, moves, status):
+        if progress.index == 1 and s == 0:
+            calls["n"] += 1
+            if calls["n"] == 2:  # the second round of moves of stage 0, in the second start: Ctrl-C
+                raise KeyboardInterrupt
+        return original(problem, progress, s, moves, status)
+
+    monkeypatch.setattr(schedule, "_hop_once", interrupted_hop)
+    partial = fit(target, model, opts)
+    assert partial.interrupted and calls["n"] == 2
+    monkeypatch.setattr(schedule, "_hop_once", original)
+    resumed = fit(target, model, opts, resume=True)
+    assert not resumed.interrupted
+    for a, b in zip(reference.starts, resumed.starts):
+        np.testing.assert_allclose(b.params, a.params, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(b.history, a.history, rtol=1e-10, atol=1e-300)
+
+
 def test_positivity_safeguard_never_crashes():
     model = HarmonicModel(8, 4)
     target = harmonic_target(random_centred_coefficients(2, 4, 0.4), 8, 20).eigenvalues

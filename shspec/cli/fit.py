@@ -121,8 +121,8 @@ def register(subparsers) -> None:
                    "succeed, and above degree 6 hops at degree 6, see --hop-degree; the numeig ramp for meshes), "
                    "'degree-ramp' (the same ramp), 'ramp' "
                    "(numeig 16, 36, 64, ... at full degree: 2 of 8), 'none' (one stage: 0 of 8), degrees "
-                   "'2,4,8,15' or degree:numeig pairs '6:16,6:64,6:120'; an 'h' after a stage ('6:64h') runs the basin hops "
-                   "after it too")
+                   "'2,4,8,15' or degree:numeig pairs '6:16,6:64,6:120'; an 'h' after a stage ('6:64h') runs "
+                   "the basin hops after it too")
     p.add_argument("--hop-degree", type=int, default=None, metavar="D",
                    help="with --schedule auto or degree-ramp (harmonic fits): the stage that raises the degree to D "
                    "runs to convergence on a basis good to the success tolerance, then the basin hops, before "

@@ -153,10 +153,10 @@ class FitOptions:
     basin_hops : int
         After the last stage, and after every stage with :attr:`Stage.hops` (in the default degree ramp of a fit
         above degree 6, the stage of degree 6), while the relative residual is above success_tol, up to this many
-        basin hops (0: none).  A hop first tries the model's cheap moves (power-preserving moves of one degree block: half-turns
-        about the axes, signs of odd blocks), and when none of them lowers the energy, the grid moves of
-        ``hop_grid``.  Each move tried gets ``hop_iter`` iterations, and the first that lowers the energy is
-        refitted to convergence.  The hops stop at success, after ``basin_hops`` accepted moves, or when no move
+        basin hops (0: none).  A hop first tries the model's cheap moves (power-preserving moves of one degree
+        block: half-turns about the axes, signs of odd blocks), and when none of them lowers the energy, the grid
+        moves of ``hop_grid``.  Each move tried gets ``hop_iter`` iterations, and the first that lowers the energy
+        is refitted to convergence.  The hops stop at success, after ``basin_hops`` accepted moves, or when no move
         lowers the energy, so a larger budget costs only the starts that are still improving.  Not checkpointed (a
         run resumed after the last stage repeats it).  On the blob with :func:`~shspec.inverse.degree_ramp`, 4 hops
         (hop_iter 15) raised the successes from 2 to 7 of 8 starts.  At degree 10 (Lb 24, K = 300, the capped
