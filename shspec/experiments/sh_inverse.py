@@ -82,7 +82,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
                          "status": best.status})
             results[name], alignments[name] = result, al
             save_result(out / f"fit_{name}.h5", result)
-            bar.step(f"{name}: energy {best.energy:.2e}, error {rows[-1]['error_aligned']:.3f}, "
+            bar.step(f"{name}: energy {best.energy:.2e}, error {rows[-1]['error_aligned']:.2g}, "
                      f"{result.seconds:.0f} s")
 
     figures = []
@@ -122,7 +122,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
     def outcome(name: str) -> str:
         row = r[name]
         return (f"spectral energy {row['spectral_energy']:.2e}, largest relative residual {row['residual_max']:.1e}, "
-                f"error {row['error_aligned']:.3f} against {row['estimated_error']:.2g} estimated from that residual "
+                f"error {row['error_aligned']:.2g} against {row['estimated_error']:.2g} estimated from that residual "
                 f"(power error {row['power_error']:.3f}), {row['iterations']} iterations, {row['seconds']:.0f} s")
 
     summary = (
