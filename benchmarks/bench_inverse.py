@@ -43,7 +43,7 @@ from shspec.experiments.common import load_mesh_area_4pi  # noqa: E402
 from shspec.experiments.fitting import vertex_factor_errors  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import machine_info  # noqa: E402
+from common import git_commit, machine_info  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "benchmarks" / "results" / "bench_inverse.json"
@@ -170,19 +170,22 @@ def bench_goal_degree10(report, starts, workers):
 
 def bench_success_by_degree(report, starts, workers, degrees=(6, 8, 12)):
     """Success rates of the default fit on random centred rho (seed 1) of several degrees, each at the K and Lb that
-    ``shspec fit`` plans without --numeig (degree 10 and the blob at 15 are the goal sections)."""
+    ``shspec fit`` plans without --numeig (degree 10 and the blob at 15 are the goal sections).  Degrees not run
+    keep their earlier records."""
     from shspec.galerkin.planning import plan_numeig
 
-    section = {}
+    section = json.loads(OUT.read_text()).get("success_by_degree", {}) if OUT.exists() else {}
     for la in degrees:
         truth = random_centred_coefficients(1, la, 0.2)
         plan = plan_numeig(la, random_centred_coefficients(0, la, 0.2), noise=FitOptions().residual_tol,
                            accuracy=1e-8)
         target = harmonic_target(truth, plan.lmax, plan.numeig)
+        load = list(os.getloadavg())
         with make_executor(workers) as ex:
             result = fit(target, HarmonicModel(plan.lmax, la), FitOptions(starts=starts), executor=ex)
         setting = f"random centred rho (seed 1, degree {la}), planned K={plan.numeig}, Lb={plan.lmax}"
-        section[f"degree {la}"] = {"setting": setting,
+        section[f"degree {la}"] = {"setting": setting, "workers": workers, "commit": git_commit(),
+                                   "load_average_before_after": [load, list(os.getloadavg())],
                                    **_goal_summary(result, truth, f"FitOptions(starts={starts})")}
         report["success_by_degree"] = section
         _save(report)
@@ -352,6 +355,7 @@ def main(argv=None):
     parser.add_argument("--sections", default="blob,optimizers,study,goal_degree10,goal_blob,bunny")
     parser.add_argument("--workers", type=int, default=1,
                         help="processes for the starts of the goal sections (one BLAS thread each)")
+    parser.add_argument("--degrees", default="6,8,12", help="degrees of the success_by_degree section")
     parser.add_argument("--starts", type=int, default=None,
                         help="starts of the goal sections (default 4, 2 with --quick; each section records it)")
     args = parser.parse_args(argv)
@@ -380,7 +384,8 @@ def main(argv=None):
         if "goal_blob" in sections:
             bench_goal_blob(report, goal_starts, args.workers)
         if "success_by_degree" in sections:
-            bench_success_by_degree(report, 2 if args.quick else 4, args.workers)
+            bench_success_by_degree(report, 2 if args.quick else 4, args.workers,
+                                    tuple(int(d) for d in args.degrees.split(",")))
         if "bunny" in sections:
             bench_bunny(report, 15 if args.quick else 40, 60 if args.quick else 100)
         if "mesh_log" in sections:
