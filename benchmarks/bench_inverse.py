@@ -137,6 +137,15 @@ def _goal_summary(result, truth, options_text):
     return out
 
 
+def _fit_measured(target, model, options, workers):
+    """``fit`` on ``workers`` processes, and the run's record: workers, wall time and load average around it."""
+    load, t0 = list(os.getloadavg()), time.perf_counter()
+    with make_executor(workers) as ex:
+        result = fit(target, model, options, executor=ex)
+    return result, {"workers": workers, "wall_seconds": time.perf_counter() - t0,
+                    "load_average_before_after": [load, list(os.getloadavg())]}
+
+
 def bench_study(report, starts, workers):
     """The study's harmonic setting: Lb = 30, La = 15, K = 256, R = 0 and 1e-6, the default schedule."""
     truth = blob_factor(15)
@@ -144,12 +153,8 @@ def bench_study(report, starts, workers):
     model = HarmonicModel(30, 15)
     section = {"setting": "Lb=30, La=15 (256 coefficients), 256 eigenvalues, target: the blob, default options"}
     for reg in (0.0, 1e-6):
-        load, t0 = list(os.getloadavg()), time.perf_counter()
-        with make_executor(workers) as ex:
-            result = fit(target, model, FitOptions(starts=starts, reg=reg), executor=ex)
-        section[f"R={reg:g}"] = {"workers": workers, "wall_seconds": time.perf_counter() - t0,
-                                 "load_average_before_after": [load, list(os.getloadavg())],
-                                 **_goal_summary(result, truth, f"FitOptions(starts={starts}, reg={reg:g})")}
+        result, run = _fit_measured(target, model, FitOptions(starts=starts, reg=reg), workers)
+        section[f"R={reg:g}"] = {**run, **_goal_summary(result, truth, f"FitOptions(starts={starts}, reg={reg:g})")}
         report["study"] = section
         _save(report)
 
@@ -158,12 +163,8 @@ def bench_goal_degree10(report, starts, workers):
     """Issue 14's first goal: a random centred rho of degree 10, 300 eigenvalues, Lb = 24, default options."""
     truth = random_centred_coefficients(1, 10, 0.2)
     target = harmonic_target(truth, 24, 300)
-    load, t0 = list(os.getloadavg()), time.perf_counter()
-    with make_executor(workers) as ex:
-        result = fit(target, HarmonicModel(24, 10), FitOptions(starts=starts), executor=ex)
-    report["goal_degree10"] = {"setting": "random centred rho (seed 1, degree 10), Lb=24, 300 eigenvalues",
-                               "workers": workers, "wall_seconds": time.perf_counter() - t0,
-                               "load_average_before_after": [load, list(os.getloadavg())],
+    result, run = _fit_measured(target, HarmonicModel(24, 10), FitOptions(starts=starts), workers)
+    report["goal_degree10"] = {"setting": "random centred rho (seed 1, degree 10), Lb=24, 300 eigenvalues", **run,
                                **_goal_summary(result, truth, f"FitOptions(starts={starts})")}
     _save(report)
 
@@ -180,12 +181,9 @@ def bench_success_by_degree(report, starts, workers, degrees=(6, 8, 12)):
         plan = plan_numeig(la, random_centred_coefficients(0, la, 0.2), noise=FitOptions().residual_tol,
                            accuracy=1e-8)
         target = harmonic_target(truth, plan.lmax, plan.numeig)
-        load = list(os.getloadavg())
-        with make_executor(workers) as ex:
-            result = fit(target, HarmonicModel(plan.lmax, la), FitOptions(starts=starts), executor=ex)
+        result, run = _fit_measured(target, HarmonicModel(plan.lmax, la), FitOptions(starts=starts), workers)
         setting = f"random centred rho (seed 1, degree {la}), planned K={plan.numeig}, Lb={plan.lmax}"
-        section[f"degree {la}"] = {"setting": setting, "workers": workers, "commit": git_commit(),
-                                   "load_average_before_after": [load, list(os.getloadavg())],
+        section[f"degree {la}"] = {"setting": setting, "commit": git_commit(), **run,
                                    **_goal_summary(result, truth, f"FitOptions(starts={starts})")}
         report["success_by_degree"] = section
         _save(report)
@@ -200,13 +198,9 @@ def bench_goal_blob(report, starts, workers):
     plan = plan_numeig(la, truth, noise=FitOptions().residual_tol, accuracy=1e-8)
     k, lb = (plan.numeig, plan.lmax) if plan.numeig is not None else (600, 30)
     target = harmonic_target(truth, lb, k)
-    load = list(os.getloadavg())
-    t0 = time.perf_counter()
-    with make_executor(workers) as ex:  # progress: each stage and hop is logged on stderr as it ends
-        result = fit(target, HarmonicModel(lb, la), FitOptions(starts=starts, progress=True), executor=ex)
-    report["goal_blob"] = {"setting": f"the blob at La=15, K={k}, Lb={lb}", "plan": plan.to_dict(),
-                           "workers": workers, "wall_seconds": time.perf_counter() - t0,
-                           "load_average_before_after": [load, list(os.getloadavg())],
+    # progress: each stage and hop is logged on stderr as it ends
+    result, run = _fit_measured(target, HarmonicModel(lb, la), FitOptions(starts=starts, progress=True), workers)
+    report["goal_blob"] = {"setting": f"the blob at La=15, K={k}, Lb={lb}", "plan": plan.to_dict(), **run,
                            **_goal_summary(result, truth, f"FitOptions(starts={starts})")}
     _save(report)
 

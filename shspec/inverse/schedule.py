@@ -145,7 +145,7 @@ def default_hop_degree(lmax_factor: int) -> int | None:
     """The degree whose stage hops in the default degree ramp of a fit of degree ``lmax_factor``
     (:data:`DEFAULT_HOP_DEGREE`, or None when the fit's own degree is not above it: its last stage hops anyway)."""
     lmax_factor = check_int(lmax_factor, "lmax_factor", minimum=0)
-    return DEFAULT_HOP_DEGREE if DEFAULT_HOP_DEGREE is not None and lmax_factor > DEFAULT_HOP_DEGREE else None
+    return DEFAULT_HOP_DEGREE if lmax_factor > DEFAULT_HOP_DEGREE else None
 
 
 class FitProblem:
