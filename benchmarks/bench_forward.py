@@ -39,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import REPO, load_average, machine_info, side_by_side, summarize, threads, timed, write_json  # noqa: E402
 
 from shspec.sphere.factor import ConformalFactor  # noqa: E402
-from shspec.galerkin.solver import HarmonicModel, _schur_scaled_upper  # noqa: E402
+from shspec.galerkin.model import HarmonicModel, _schur_scaled_upper  # noqa: E402
 from shspec.sphere.grid import evaluate_on_grid, glq_grid  # noqa: E402
 from shspec.sphere.harmonics import degree_order, degrees  # noqa: E402
 from shspec.gaunt.build import build_table  # noqa: E402

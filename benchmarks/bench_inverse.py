@@ -173,7 +173,7 @@ def bench_success_by_degree(report, starts, workers, degrees=(6, 8, 12)):
     """Success rates of the default fit on random centred rho (seed 1) of several degrees, each at the K and Lb that
     ``shspec fit`` plans without --numeig (degree 10 and the blob at 15 are the goal sections).  Degrees not run
     keep their earlier records."""
-    from shspec.galerkin.planning import plan_numeig
+    from shspec.inverse.planning import plan_numeig
 
     section = json.loads(OUT.read_text()).get("success_by_degree", {}) if OUT.exists() else {}
     for la in degrees:
@@ -191,7 +191,7 @@ def bench_success_by_degree(report, starts, workers, degrees=(6, 8, 12)):
 
 def bench_goal_blob(report, starts, workers):
     """Issue 14's second goal: the blob at La = 15 with the K that ``shspec identifiability`` recommends."""
-    from shspec.galerkin.planning import plan_numeig
+    from shspec.inverse.planning import plan_numeig
 
     la = 15
     truth = blob_factor(la)

@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import load_average, machine_info, side_by_side, threads, write_json  # noqa: E402
 
 import shspec  # noqa: E402
-from shspec.galerkin.solver import HarmonicModel, _schur_scaled_upper  # noqa: E402
+from shspec.galerkin.model import HarmonicModel, _schur_scaled_upper  # noqa: E402
 from shspec.gaunt.build import build_table  # noqa: E402
 from shspec.inverse.energy import Objective, eigenvalue_weights  # noqa: E402
 from shspec.inverse.optimize import make_optimizer  # noqa: E402

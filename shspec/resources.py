@@ -1,9 +1,7 @@
 """Memory and disk a computation needs, checked against what the machine has before anything is allocated.
 
-A forward solve at (Lb, La) holds the Gaunt table (8 bytes per value, :func:`~shspec.gaunt.table.table_size`), its
-assembly plan (:func:`~shspec.gaunt.table.plan_bytes`) and two dense N × N float64 matrices (the mass matrix and
-the scaled Schur complement that LAPACK overwrites with the eigenvectors), N = (Lb+1)²; building a table also
-writes it to the cache.  The machine's available memory is ``MemAvailable`` of /proc/meminfo (what the kernel
+Each computation states its own :class:`Need` beside what it measures: a table's in
+:func:`~shspec.gaunt.table.table_need`, a forward solve's in :func:`~shspec.galerkin.model.forward_need`.  The machine's available memory is ``MemAvailable`` of /proc/meminfo (what the kernel
 can give without swapping), else ``os.sysconf('SC_AVPHYS_PAGES')``; when neither exists nothing is checked.
 """
 
@@ -16,8 +14,7 @@ from pathlib import Path
 
 from .errors import ResourceLimitError
 
-__all__ = ["Need", "available_memory", "free_disk", "load_average", "forward_need", "table_need", "check_need",
-           "human_bytes"]
+__all__ = ["Need", "available_memory", "free_disk", "load_average", "check_need", "human_bytes"]
 
 #: Fraction of the available memory a computation may plan to use (the rest: Python, BLAS workspaces, the OS).
 MEMORY_FRACTION = 0.9
@@ -74,25 +71,6 @@ class Need:
     what: str
     memory: int
     disk: int = 0
-
-
-def table_need(lmax: int, lmax_factor: int) -> Need:
-    """Building and caching the table (Lb, La): its values in memory and on disk."""
-    from .gaunt.table import table_size  # not at the top: shspec.gaunt's cache imports this module
-
-    nbytes = 8 * table_size(lmax, lmax_factor)
-    return Need(f"the Gaunt table ({lmax},{lmax_factor})", nbytes, nbytes)
-
-
-def forward_need(lmax: int, lmax_factor: int, *, with_table: bool = True) -> Need:
-    """A forward solve at (Lb, La): table values (if ``with_table``), plan and two dense N × N matrices."""
-    from .gaunt.table import plan_bytes, table_size  # not at the top: shspec.gaunt's cache imports this module
-
-    n = (lmax + 1) ** 2
-    memory = plan_bytes(lmax, lmax_factor) + 2 * 8 * n * n
-    if with_table:
-        memory += 8 * table_size(lmax, lmax_factor)
-    return Need(f"a forward solve at Lb = {lmax}, La = {lmax_factor}", memory)
 
 
 def _largest_fitting(lmax: int, lmax_factor: int, memory: int, estimate) -> tuple[int, int] | None:

@@ -22,7 +22,7 @@ import scipy.sparse as sp
 
 from .checks import check_int
 from .errors import InvalidArgumentError
-from .galerkin.solver import HarmonicModel
+from .galerkin.model import HarmonicModel
 from .mesh.bridge import fit_harmonic, mesh_band_limit
 from .mesh.cmcf import CMCFResult, cmcf
 from .mesh.cotan import cotan_stiffness, vertex_areas

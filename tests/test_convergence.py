@@ -9,7 +9,8 @@ import pytest
 
 from shspec import ConformalFactor
 from shspec.cli import main
-from shspec.galerkin.convergence import convergence, convergence_in_factor, pl_spectrum_of_factor
+from shspec.galerkin.convergence import convergence, convergence_in_factor
+from shspec.mesh.factor_spectrum import pl_spectrum_of_factor
 from shspec.errors import InvalidArgumentError
 
 

@@ -6,7 +6,7 @@ import scipy.linalg
 
 from shspec import ConformalFactor, spectrum
 from shspec.errors import BandLimitError, InvalidArgumentError, NotPositiveError
-from shspec.galerkin.solver import HarmonicModel
+from shspec.galerkin.model import HarmonicModel
 from shspec.sphere.harmonics import degrees
 
 from conftest import random_factor_coefficients

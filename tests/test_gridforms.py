@@ -5,7 +5,7 @@ import pytest
 
 from shspec.errors import InvalidArgumentError
 from shspec.galerkin.gridforms import GridQuadraticForms
-from shspec.galerkin.solver import HarmonicModel
+from shspec.galerkin.model import HarmonicModel
 from shspec.gaunt.build import build_table
 from shspec.sphere.harmonics import ncoeffs
 

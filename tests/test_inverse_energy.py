@@ -276,7 +276,8 @@ def test_identifiability_by_numeig_equals_one_analysis_per_k():
 
 
 def test_plan_numeig_recommends_the_smallest_k_within_the_accuracy():
-    from shspec.galerkin.planning import basis_degree_for, candidate_numeigs, plan_numeig
+    from shspec.galerkin.truncation import basis_degree_for
+    from shspec.inverse.planning import candidate_numeigs, plan_numeig
 
     plan = plan_numeig(4, noise=1e-8, accuracy=1e-6)
     ks = [r.numeig for r in plan.rows]
@@ -304,7 +305,8 @@ def test_converged_basis_degree_against_a_much_larger_basis():
     """The recommended basis really resolves the K eigenvalues (checked at Lb + 6, which the scan never saw), is the
     smallest that does by its own measure, and is far above the (Lb + 1)^2 >= 1.5 K floor for a rough rho: there the
     floor leaves the eigenvalues more than 1e-4 off."""
-    from shspec.galerkin.planning import basis_degree_for, converged_basis_degree
+    from shspec.galerkin.truncation import basis_degree_for
+    from shspec.inverse.planning import converged_basis_degree
 
     a = random_centred_coefficients(0, 6, 0.2)
     lb, change = converged_basis_degree(a, 64, tol=1e-6)

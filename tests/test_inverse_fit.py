@@ -143,7 +143,7 @@ def test_escape_moves_keep_power_and_gauge_and_undo_themselves():
 
 def _state_at(problem, params, stage=0):
     """A start's progress resting at ``params`` on ``stage`` of ``problem``, and its evaluation there."""
-    from shspec.inverse.schedule import StartProgress
+    from shspec.inverse.problem import StartProgress
 
     obj = problem.objective(stage, params)
     ev = obj.evaluate(obj.initial())
@@ -154,7 +154,8 @@ def _state_at(problem, params, stage=0):
 def test_basin_hop_is_accepted_and_leaves_a_wrongly_turned_block(small):
     """A state whose degree-3 block is half-turned has the right power but the wrong spectrum; one hop returns it
     to the truth (the move back is the one of lowest energy, and its refit reaches rounding)."""
-    from shspec.inverse.schedule import FitProblem, _basin_hop
+    from shspec.inverse.hops import basin_hop
+    from shspec.inverse.problem import FitProblem
 
     target, model = small
     truth = blob_factor().coefficients
@@ -163,7 +164,7 @@ def test_basin_hop_is_accepted_and_leaves_a_wrongly_turned_block(small):
                                                    hop_iter=3))
     progress, ev = _state_at(problem, wrong)
     assert ev.relative_residual > 1e-4
-    _basin_hop(problem, progress, "energy_tol", 0)
+    basin_hop(problem, progress, "energy_tol", 0)
     assert progress.relative_residual < 1e-10
     assert align(ConformalFactor(progress.params), truth).relative_error < 1e-8
 
@@ -218,7 +219,7 @@ def test_resume_from_checkpoint_equals_uninterrupted_run(small, tmp_path, monkey
 def test_resume_after_ctrl_c_in_the_hops_of_a_stage_equals_uninterrupted_run(small, tmp_path, monkeypatch):
     """Ctrl-C in the hops after an intermediate stage (Stage.hops), after one of them may have moved the state: the
     resumed fit runs that stage again from its start and ends exactly where an uninterrupted one does."""
-    from shspec.inverse import schedule
+    from shspec.inverse import hops
 
     target, model = small
     opts = FitOptions(starts=2, seed=3, max_iter=5, schedule=(Stage(4, hops=True), Stage(6)), basin_hops=2,
@@ -226,7 +227,7 @@ def test_resume_after_ctrl_c_in_the_hops_of_a_stage_equals_uninterrupted_run(sma
     reference = fit(target, model, FitOptions(**{**opts.__dict__, "checkpoint_every": 0, "checkpoint_path": None}))
     assert any(row[0] == 0 for row in reference.starts[1].history[6:])  # stage 0 of start 1 did hop
 
-    original = schedule._hop_once
+    original = hops.hop_once
     calls = {"n": 0}
 
     def interrupted_hop(problem, progress, s, moves, status):
@@ -236,10 +237,10 @@ def test_resume_after_ctrl_c_in_the_hops_of_a_stage_equals_uninterrupted_run(sma
                 raise KeyboardInterrupt
         return original(problem, progress, s, moves, status)
 
-    monkeypatch.setattr(schedule, "_hop_once", interrupted_hop)
+    monkeypatch.setattr(hops, "hop_once", interrupted_hop)
     partial = fit(target, model, opts)
     assert partial.interrupted and calls["n"] == 2
-    monkeypatch.setattr(schedule, "_hop_once", original)
+    monkeypatch.setattr(hops, "hop_once", original)
     resumed = fit(target, model, opts, resume=True)
     assert not resumed.interrupted
     for a, b in zip(reference.starts, resumed.starts):
@@ -434,7 +435,8 @@ def test_cli_fit_on_workers_equals_the_serial_fit(tmp_path):
 def test_orienting_a_new_block_finds_its_place_relative_to_the_lower_ones():
     """The blob truncated to degree 3 with its degree-3 block turned by a 90-degree rotation: same power, wrong
     spectrum; the orientation search after the stage that fits degree 3 turns it back."""
-    from shspec.inverse.schedule import FitProblem, _orient_new_block
+    from shspec.inverse.hops import orient_new_block
+    from shspec.inverse.problem import FitProblem
 
     model = HarmonicModel(10, 3)
     truth = blob_factor().truncated(3).coefficients
@@ -449,13 +451,13 @@ def test_orienting_a_new_block_finds_its_place_relative_to_the_lower_ones():
                                                    hop_iter=3, orient_blocks=True))
     progress, ev = _state_at(problem, wrong, stage=1)
     assert ev.relative_residual > 1e-4
-    _orient_new_block(problem, progress, 1)
+    orient_new_block(problem, progress, 1)
     assert progress.relative_residual < 1e-10
     assert align(ConformalFactor(progress.params), truth).relative_error < 1e-8
 
 
 def test_the_optimizer_default_is_the_models_in_api_and_cli(tmp_path):
-    from shspec.inverse.schedule import FitProblem
+    from shspec.inverse.problem import FitProblem
     from shspec.mesh.model import MeshModel
     from shspec.mesh.shapes import icosphere
 
@@ -511,7 +513,7 @@ def test_geodesic_acceleration_shortens_the_crawl_of_lm():
 
 def test_cli_fit_without_numeig_plans_k_and_lmax(tmp_path, capsys):
     """No --numeig: the fit takes the planned K and Lb, says so and writes the plan to summary.json."""
-    from shspec.galerkin.planning import plan_numeig
+    from shspec.inverse.planning import plan_numeig
 
     truth = random_centred_coefficients(4, 3, 0.2)
     spectrum_file = tmp_path / "spectrum.txt"
@@ -530,7 +532,8 @@ def test_grid_hop_undoes_a_quarter_turn_when_the_cheap_moves_find_nothing(monkey
     """A quarter-turn about z of the degree-3 block is no product of the cheap moves (the half-turns about the axes
     and signs).  With the cheap moves exhausted (here: none), a hop without ``hop_grid`` accepts nothing; with it the
     grid's inverse quarter-turn (energy 0 before any refit, so tried first) returns to the truth."""
-    from shspec.inverse.schedule import FitProblem, _basin_hop
+    from shspec.inverse.hops import basin_hop
+    from shspec.inverse.problem import FitProblem
     from shspec.sphere.harmonics import degrees
     from shspec.sphere.rotate import rotate_coefficients
 
@@ -549,7 +552,7 @@ def test_grid_hop_undoes_a_quarter_turn_when_the_cheap_moves_find_nothing(monkey
                                                        hop_iter=3, hop_grid=grid))
         progress, ev = _state_at(problem, wrong)
         assert ev.relative_residual > 1e-3
-        _basin_hop(problem, progress, "energy_tol", 0)
+        basin_hop(problem, progress, "energy_tol", 0)
         ends[grid] = (progress.relative_residual, align(ConformalFactor(progress.params), truth).relative_error)
     assert ends[False][0] == ev.relative_residual
     assert ends[True][0] < 1e-10 and ends[True][1] < 1e-8
@@ -567,61 +570,64 @@ def test_hop_options_are_checked():
 def test_hop_screens_with_plain_lm_and_refits_the_accepted_move_with_acceleration(small, monkeypatch):
     """The short refits of the moves run without the geodesic acceleration (FitOptions.hop_iter); the accepted
     move's refit to convergence runs with the options as given."""
-    from shspec.inverse import schedule as schedule_module
-    from shspec.inverse.schedule import FitProblem, _hop_once
+    from shspec.inverse import hops as hops_module
+    from shspec.inverse.hops import hop_once
+    from shspec.inverse.problem import FitProblem
 
     target, model = small
     truth = blob_factor().coefficients
     wrong = model.escape_moves(truth)[3]  # the half-turn about z of the degree-3 block
     seen = []
-    original = schedule_module.make_optimizer
+    original = hops_module.make_optimizer
 
     def recording(name, objective, x0, options, state=None):
         seen.append(options.lm_acceleration)
         return original(name, objective, x0, options, state)
 
-    monkeypatch.setattr(schedule_module, "make_optimizer", recording)
+    monkeypatch.setattr(hops_module, "make_optimizer", recording)
     problem = FitProblem(model, target, FitOptions(starts=1, max_iter=20, schedule=(Stage(),), hop_iter=3))
     progress, _ = _state_at(problem, wrong)
-    accepted, _ = _hop_once(problem, progress, 0, model.escape_moves(wrong), "energy_tol")
+    accepted, _ = hop_once(problem, progress, 0, model.escape_moves(wrong), "energy_tol")
     assert accepted and progress.relative_residual < 1e-10
     assert seen[-1] is True and seen[:-1] and not any(seen[:-1])
 
 
 def test_a_hop_refits_at_most_hop_tries_moves(small, monkeypatch):
     """At the truth (energy 0) no move can be accepted, so a hop refits exactly min(moves, hop_tries) of them."""
-    from shspec.inverse import schedule as schedule_module
-    from shspec.inverse.schedule import FitProblem, _hop_once
+    from shspec.inverse import hops as hops_module
+    from shspec.inverse.hops import hop_once
+    from shspec.inverse.problem import FitProblem
 
     target, model = small
     truth = blob_factor().coefficients
     calls = {"n": 0}
-    original = schedule_module.make_optimizer
+    original = hops_module.make_optimizer
 
     def counting(*args, **kwargs):
         calls["n"] += 1
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(schedule_module, "make_optimizer", counting)
+    monkeypatch.setattr(hops_module, "make_optimizer", counting)
     moves = model.escape_moves(truth)
     for tries in (1, 5, len(moves) + 3):
         problem = FitProblem(model, target, FitOptions(starts=1, schedule=(Stage(),), hop_iter=1, hop_tries=tries))
         progress, _ = _state_at(problem, truth)
         calls["n"] = 0
-        accepted, _ = _hop_once(problem, progress, 0, moves, "residual_tol")
+        accepted, _ = hop_once(problem, progress, 0, moves, "residual_tol")
         assert not accepted and calls["n"] == min(tries, len(moves))
 
 
 def test_a_hop_extends_only_the_refits_still_falling_above_the_energy(small, monkeypatch):
     """A screening refit goes past hop_iter only while its energy is at or above the state's and fell by
     _FALLING over the last _FALLING_SPAN iterations, and never past hop_extend."""
-    from shspec.inverse import schedule as schedule_module
-    from shspec.inverse.schedule import _FALLING, _FALLING_SPAN, FitProblem, _hop_once
+    from shspec.inverse import hops as hops_module
+    from shspec.inverse.hops import _FALLING, _FALLING_SPAN, hop_once
+    from shspec.inverse.problem import FitProblem
 
     target, model = small
     truth = blob_factor().coefficients  # energy 0: no move is accepted, and every refit is screened to its end
     traces = []
-    original = schedule_module.make_optimizer
+    original = hops_module.make_optimizer
 
     def tracing(name, objective, x0, options, state=None):
         optimizer = original(name, objective, x0, options, state)
@@ -637,7 +643,7 @@ def test_a_hop_extends_only_the_refits_still_falling_above_the_energy(small, mon
             traces.append((optimizer, trace))
         return optimizer
 
-    monkeypatch.setattr(schedule_module, "make_optimizer", tracing)
+    monkeypatch.setattr(hops_module, "make_optimizer", tracing)
     longest = {}
     for extend in (2, 12):
         traces.clear()
@@ -645,7 +651,7 @@ def test_a_hop_extends_only_the_refits_still_falling_above_the_energy(small, mon
                                                        hop_extend=extend))
         progress, _ = _state_at(problem, truth)
         energy = progress.energy
-        assert not _hop_once(problem, progress, 0, model.escape_moves(truth), "residual_tol")[0]
+        assert not hop_once(problem, progress, 0, model.escape_moves(truth), "residual_tol")[0]
 
         def falling(t, i):
             return energy <= t[i] <= (1.0 - _FALLING) * t[max(i - _FALLING_SPAN, 0)]
@@ -682,7 +688,7 @@ def test_stage_basis_is_the_smallest_that_agrees_at_the_reference():
 
 
 def test_early_stages_run_on_their_own_basis_and_the_last_on_the_model():
-    from shspec.inverse.schedule import FitProblem
+    from shspec.inverse.problem import FitProblem
 
     model = HarmonicModel(20, 6)
     target = harmonic_target(blob_factor(), 20, 120)

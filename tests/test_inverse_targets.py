@@ -9,7 +9,7 @@ import pytest
 
 from shspec.errors import InvalidArgumentError
 from shspec.sphere.rotate import mirror_coefficients, power_spectrum
-from shspec.inverse.options import Stage, parse_schedule
+from shspec.inverse.schedule import Stage, parse_schedule
 from shspec.inverse.schedule import numeig_ramp
 from shspec.targets import (Target, blob_factor, estimate_area, parse_target, read_spectrum)
 

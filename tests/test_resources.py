@@ -5,19 +5,19 @@ import pytest
 
 import shspec.resources as resources
 from shspec.errors import ResourceLimitError
-from shspec.galerkin.solver import HarmonicModel
+from shspec.galerkin.model import HarmonicModel, forward_need
 from shspec.gaunt.build import build_table
 from shspec.gaunt.cache import get_table
-from shspec.gaunt.table import plan_bytes, table_size
+from shspec.gaunt.table import plan_bytes, table_need, table_size
 
 
 def test_estimates_are_the_real_sizes():
     table = build_table(14, 9)
-    assert resources.table_need(14, 9).memory == table.values.nbytes == 8 * table_size(14, 9)
+    assert table_need(14, 9).memory == table.values.nbytes == 8 * table_size(14, 9)
     real_plan = sum(a.nbytes for a in table.plan.arrays[1:])
     assert real_plan <= plan_bytes(14, 9) <= 2.5 * real_plan
     n = (14 + 1) ** 2
-    assert resources.forward_need(14, 9).memory == table.values.nbytes + plan_bytes(14, 9) + 16 * n * n
+    assert forward_need(14, 9).memory == table.values.nbytes + plan_bytes(14, 9) + 16 * n * n
 
 
 def test_a_table_that_does_not_fit_is_refused_before_building(tmp_path, monkeypatch):
@@ -42,6 +42,6 @@ def test_a_forward_solve_that_does_not_fit_names_what_fits(tmp_path, monkeypatch
         HarmonicModel(60, 30, cache_dir=tmp_path)
     lb, la = (int(x) for x in np.array(str(err.value).split("Lb = ")[-1].split(", La = ")))
     # the suggestion fits and one degree more would not
-    assert resources.forward_need(lb, la).memory <= 0.9 * 64 * 2**20
-    assert resources.forward_need(lb + 1, round((lb + 1) / 2)).memory > 0.9 * 64 * 2**20
+    assert forward_need(lb, la).memory <= 0.9 * 64 * 2**20
+    assert forward_need(lb + 1, round((lb + 1) / 2)).memory > 0.9 * 64 * 2**20
     assert la == round(lb / 2)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from shspec.errors import InvalidArgumentError
-from shspec.galerkin import solver
-from shspec.galerkin.solver import WARM_GATE, HarmonicModel
+from shspec.galerkin import model as harmonic_model
+from shspec.galerkin.model import WARM_GATE, HarmonicModel
 from shspec.inverse.energy import Objective, eigenvalue_weights
 from shspec.inverse.parametrization import Parametrization
 
@@ -76,7 +76,7 @@ def test_a_step_beyond_what_rayleigh_ritz_certifies_falls_back(model, rng, monke
     start = model.spectrum(a, K)
     far = model.spectrum(step(rng, a, 100 * WARM_GATE), K, start=start)  # beyond the gate: not even tried
     assert far.solver != "warm"
-    monkeypatch.setattr(solver, "WARM_GATE", 1.0)  # let the residual check decide
+    monkeypatch.setattr(harmonic_model, "WARM_GATE", 1.0)  # let the residual check decide
     b = step(rng, a, 1e-5)  # Rayleigh–Ritz errs by ~1e-10 relative here
     spec = model.spectrum(b, K, start=start)
     assert spec.solver != "warm"

@@ -16,10 +16,12 @@ import numpy as np
 
 from ..errors import InvalidArgumentError, OutputError
 from ..galerkin import HarmonicModel
-from ..galerkin.planning import plan_numeig
+from ..inverse.planning import plan_numeig
 from ..inverse.multistart import fit
-from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions, parse_schedule
-from ..inverse.schedule import DEFAULT_STAGE_MAX_ITER, default_hop_degree, degree_ramp, numeig_ramp
+from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions
+from ..inverse.output import write_result
+from ..inverse.schedule import (DEFAULT_STAGE_MAX_ITER, default_hop_degree, degree_ramp, numeig_ramp,
+                               parse_schedule)
 from ..targets import TARGET_SOURCES, Target, parse_target, read_spectrum
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.io import load_mesh
@@ -351,7 +353,7 @@ def _fit(args) -> int:
     else:
         with make_executor(args.workers, args.scheduler) as executor:
             result = fit(target, model, options, resume=args.resume, init=init, executor=executor)
-    result.write(out)
+    write_result(result, out)
     if extra:
         path = out / "summary.json"
         path.write_text(json.dumps({**json.loads(path.read_text()), **extra}, indent=2) + "\n")

@@ -16,7 +16,8 @@ import numpy as np
 from .._version import __version__
 from ..atomic import atomic_hdf5, atomic_path
 from ..errors import BandLimitError, InvalidArgumentError, TruncationWarning
-from ..galerkin.convergence import convergence, convergence_in_factor, pl_spectrum_of_factor
+from ..galerkin.convergence import convergence, convergence_in_factor
+from ..mesh.factor_spectrum import pl_spectrum_of_factor
 from ..galerkin.solver import MAX_BASIS_DEGREE, spectrum
 from ..io import ensure_directory, write_csv
 from ..sphere.harmonics import check_degree

@@ -8,7 +8,8 @@ import json
 import numpy as np
 
 from ..errors import InvalidArgumentError
-from ..galerkin.planning import basis_degree_for, candidate_numeigs, plan_numeig
+from ..galerkin.truncation import basis_degree_for
+from ..inverse.planning import candidate_numeigs, plan_numeig
 from ..sphere.random import random_centred_coefficients
 from ..targets import blob_factor, parse_target
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..galerkin.solver import HarmonicModel
+from ..galerkin.model import HarmonicModel
 from ..inverse import FitOptions, Objective, Parametrization, eigenvalue_weights
 from ..inverse.optimize import make_optimizer
 from ..sphere.harmonics import degrees

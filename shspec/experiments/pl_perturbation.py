@@ -110,7 +110,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         f"{rows[0]['recovered_fraction']:.0%} to {rows[-1]['recovered_fraction']:.0%} of it (negative: worse than "
         f"the constant). The rotation-invariant per-degree power of the harmonic expansion (degree "
         f"{cfg['lmax_factor']}) differs by {rows[0]['error_power']:.3f} to {rows[-1]['error_power']:.3f}"
-        + (f"; after Möbius centering and the best element of O(3) the harmonic L2 error is "
+        + ("; after Möbius centering and the best element of O(3) the harmonic L2 error is "
            + ", ".join(f"{r['error_aligned_harmonic']:.3f}" for r in rows if np.isfinite(r["error_aligned_harmonic"]))
            if cfg["align"] != "none" else "")
         + (". A small O(3)-invariant error next to a large per-vertex one suggests that the fit is largely a rotated "

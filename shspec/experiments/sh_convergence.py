@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidArgumentError
-from ..galerkin.convergence import convergence, convergence_in_factor, pl_spectrum_of_factor
+from ..galerkin.convergence import convergence, convergence_in_factor
+from ..mesh.factor_spectrum import pl_spectrum_of_factor
 from .base import Experiment, Finding, register
 from .common import centred_random_factor, figure, save_figure
 

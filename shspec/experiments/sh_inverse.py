@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..galerkin.solver import HarmonicModel
+from ..galerkin.model import HarmonicModel
 from ..inverse import FitOptions, Stage, align, blob_factor, fit, harmonic_target, parse_schedule, save_result
 from ..inverse.plots import plot_factors
 from ..inverse.schedule import default_schedule

@@ -2,6 +2,7 @@
 (:mod:`~shspec.galerkin.solver`), and convergence studies in the band limits (:mod:`~shspec.galerkin.convergence`)."""
 
 from .convergence import convergence, convergence_in_factor
-from .solver import HarmonicModel, SpectrumResult, spectrum
+from .model import HarmonicModel, SpectrumResult
+from .solver import spectrum
 
 __all__ = ["HarmonicModel", "SpectrumResult", "spectrum", "convergence", "convergence_in_factor"]

@@ -4,7 +4,8 @@ Galerkin eigenvalues approach the true ones from above and, for smooth ρ, expon
 eigenvalue behaves like C·exp(−r·Lb).  :func:`convergence` measures the change of each eigenvalue against the finest
 basis and fits the rate r per eigenvalue group (the groups are the multiplets of the round sphere: indices l², …,
 (l+1)² − 1 form group l).  The same can be done in La (how many coefficients of ρ matter).  The piecewise-linear
-spectrum of a sphere mesh carrying ρ converges from below; :func:`pl_spectrum_of_factor` computes it for the plots.
+spectrum of a sphere mesh carrying ρ converges from below
+(:func:`~shspec.mesh.factor_spectrum.pl_spectrum_of_factor`).
 """
 
 from __future__ import annotations
@@ -14,14 +15,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InvalidArgumentError
-from ..mesh.model import MeshModel
-from ..mesh.shapes import icosphere
-from ..sphere.evaluate import sample_harmonic
-from ..sphere.factor import ConformalFactor, as_factor
+from ..sphere.factor import as_factor
 from ..sphere.harmonics import check_degree
-from .solver import HarmonicModel
+from .model import HarmonicModel
 
-__all__ = ["ConvergenceStudy", "convergence", "convergence_in_factor", "pl_spectrum_of_factor"]
+__all__ = ["ConvergenceStudy", "convergence", "convergence_in_factor"]
 
 
 @dataclass
@@ -184,13 +182,3 @@ def convergence_in_factor(rho, lmax_factor_values, lmax: int, k: int, *, cache_d
     return ConvergenceStudy("lmax_factor", values, np.array(lams), lmax)
 
 
-def pl_spectrum_of_factor(rho, k: int, subdivisions: int = 4) -> np.ndarray:
-    """First k eigenvalues of the cotan Laplacian of an icosphere carrying ρ (lumped mass scaled by ρ at vertices).
-
-    The piecewise-linear counterpart of the harmonic spectrum of the same metric; it is the reference the study
-    compares the harmonic one with (its Section 3.3).
-    """
-    factor = rho if isinstance(rho, ConformalFactor) else as_factor(rho)
-    sphere = icosphere(subdivisions)
-    c = sample_harmonic(factor.coefficients, sphere.vertices)
-    return MeshModel(sphere).spectrum(c, k).eigenvalues

@@ -27,9 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import check_int
 from ..sphere.harmonics import lmax_of_size
 
-__all__ = ["TruncationEstimate", "tail_bound", "factor_truncation", "DEFAULT_TRUNCATION_TOL"]
+__all__ = ["TruncationEstimate", "tail_bound", "factor_truncation", "basis_degree_for", "DEFAULT_TRUNCATION_TOL"]
 
 #: Relative eigenvalue error above which :func:`~shspec.galerkin.solver.spectrum` warns.
 DEFAULT_TRUNCATION_TOL = 1e-6
@@ -115,3 +116,10 @@ def factor_truncation(coefficients: np.ndarray, lmax_factor: int, minimum: float
         return 0.0
     eps = tail / minimum if minimum > 0 else float("inf")
     return float(eps / (1.0 - eps)) if eps < 1 else float("inf")
+def basis_degree_for(numeig: int, lmax_factor: int) -> int:
+    """The smallest basis degree Lb ≥ La with (Lb + 1)² ≥ 1.5·K: the floor below which K eigenvalues of ρ of degree
+    La are not resolved (:func:`~shspec.inverse.planning.converged_basis_degree` scans upwards from it)."""
+    numeig = check_int(numeig, "numeig", minimum=2)
+    lmax_factor = check_int(lmax_factor, "lmax_factor", minimum=0)
+    return max(int(np.ceil(np.sqrt(1.5 * numeig))) - 1, lmax_factor)
+

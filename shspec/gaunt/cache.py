@@ -48,11 +48,11 @@ from .._version import __version__
 from ..atomic import atomic_hdf5, temporary_files
 from ..errors import BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError
 from ..io import ensure_directory
-from ..resources import check_need, table_need
+from ..resources import check_need
 from ..sphere.harmonics import degree_order
 from .build import build_table
 from .real_gaunt import real_gaunt
-from .table import GauntTable, check_limits, table_size
+from .table import GauntTable, check_limits, table_need, table_size
 
 __all__ = ["CONVENTION", "FORMAT_VERSION", "TableInfo", "TempFileInfo", "cache_dir", "cache_dir_source", "table_path",
            "save_table", "load_table", "get_table", "list_tables", "list_temporary_files", "remove_stale_files",

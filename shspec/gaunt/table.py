@@ -21,10 +21,12 @@ import numba as nb
 import numpy as np
 
 from ..errors import BandLimitError, InvalidArgumentError
-from .real_gaunt import order_factor
+from ..resources import Need
 from ..sphere.harmonics import check_degree, ncoeffs
+from .real_gaunt import order_factor
 
-__all__ = ["GauntTable", "table_size", "check_limits", "plan_bytes", "PLAN_ENTRY_BYTES", "MAX_BASIS_DEGREE"]
+__all__ = ["GauntTable", "table_size", "check_limits", "plan_bytes", "PLAN_ENTRY_BYTES", "MAX_BASIS_DEGREE",
+           "table_need"]
 
 
 #: Largest basis band limit Lb of a table and of a forward solve (the table and the dense N×N matrices,
@@ -440,3 +442,10 @@ def plan_bytes(lmax: int, lmax_factor: int) -> int:
     close = np.abs(l[:, None] - l[None, :]) <= lmax_factor
     pairs = (np.sum(np.outer(w, w) * close) + np.sum(w)) // 2  # ordered pairs i <= j
     return PLAN_ENTRY_BYTES * 2 * int(pairs)
+
+
+def table_need(lmax: int, lmax_factor: int) -> Need:
+    """Building and caching the table (Lb, La): its values in memory and on disk."""
+    nbytes = 8 * table_size(lmax, lmax_factor)
+    return Need(f"the Gaunt table ({lmax},{lmax_factor})", nbytes, nbytes)
+

@@ -4,7 +4,7 @@ It sees a discretization only through :class:`~shspec.model.SpectralModel`, and 
 :class:`~shspec.targets.Target` (built by :mod:`shspec.targets`, whose builders are re-exported here).  Pipeline: a :class:`Target`
 (spectrum, and the truth when known) → :func:`fit` with :class:`FitOptions` (optimizer, weights, regularizer,
 schedule of :class:`Stage` s, starts) over a :class:`~shspec.inverse.parametrization.Parametrization` of the
-model's parameters → :class:`FitResult` (every start, the distinct local solutions; :meth:`FitResult.write` saves
+model's parameters → :class:`FitResult` (every start, the distinct local solutions; :func:`write_result` saves
 result.h5, summary.json and the figures) → :func:`align` against the truth (Möbius centering, best element of O(3)).
 """
 
@@ -12,14 +12,16 @@ from .align import Alignment, align
 from .checkpoint import load_result_summary, save_result
 from .energy import Objective, eigenvalue_weights, relative_residual
 from .multistart import distinct_solutions, fit
-from .options import FitOptions, FitResult, Stage, StartResult, parse_schedule
+from .options import FitOptions
+from .output import summary, write_result
 from .parametrization import Parametrization
-from .schedule import default_schedule, degree_ramp, numeig_ramp
+from .results import FitResult, StartResult
+from .schedule import Stage, default_schedule, degree_ramp, numeig_ramp, parse_schedule
 from ..targets import (BLOB_HARMONIC, Target, blob_factor, estimate_area, harmonic_target, mesh_target, parse_target,
                       read_spectrum, spectrum_target)
 
 __all__ = ["Alignment", "align", "load_result_summary", "save_result", "Objective", "eigenvalue_weights",
-           "relative_residual", "distinct_solutions", "fit", "FitOptions", "FitResult", "Stage", "StartResult",
+           "relative_residual", "summary", "write_result", "distinct_solutions", "fit", "FitOptions", "FitResult", "Stage", "StartResult",
            "parse_schedule", "Parametrization", "default_schedule", "numeig_ramp", "degree_ramp", "BLOB_HARMONIC",
            "Target", "blob_factor", "estimate_area", "harmonic_target", "mesh_target", "parse_target",
            "read_spectrum", "spectrum_target"]

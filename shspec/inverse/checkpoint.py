@@ -23,8 +23,9 @@ import scipy
 from .._version import __version__
 from ..atomic import atomic_hdf5
 from ..errors import CheckpointError
-from .options import FitOptions, StartResult
-from .schedule import StartProgress
+from .options import FitOptions
+from .problem import StartProgress
+from .results import StartResult
 
 __all__ = ["fingerprint", "save_checkpoint", "load_checkpoint", "save_result", "load_result_summary",
            "CHECKPOINT_FORMAT"]

@@ -18,8 +18,10 @@ from ..checks import check_options
 from ..errors import InvalidArgumentError
 from ..model import SpectralModel
 from .checkpoint import fingerprint, load_checkpoint, save_checkpoint
-from .options import FitOptions, FitResult, StartResult
-from .schedule import FitProblem, StartProgress, run_start
+from .driver import run_start
+from .options import FitOptions
+from .problem import FitProblem, StartProgress
+from .results import FitResult, StartResult
 from ..targets import Target
 
 __all__ = ["fit", "distinct_solutions"]

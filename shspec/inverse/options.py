@@ -1,23 +1,18 @@
-"""Options and results of the inverse solver, as small frozen dataclasses.
+"""Options of the inverse solver, as one frozen dataclass (:class:`FitOptions`).
 
-A fit runs a *schedule* of :class:`Stage` s from each of several starts.  Each stage fixes the factor's degree
-(harmonic fits) and the number of matched eigenvalues, and starts from where the previous stage stopped.  The
-results keep every start (:class:`StartResult`) and the distinct local solutions among them (:class:`FitResult`).
+A fit runs a *schedule* of :class:`~shspec.inverse.schedule.Stage` s from each of several starts; its results are
+in :mod:`shspec.inverse.results`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
-import numpy as np
+from dataclasses import dataclass
 
 from ..checks import check_float, check_int
-from ..errors import InvalidArgumentError, NotPositiveError
-from .align import align
-from .identifiability import identifiability
+from ..errors import InvalidArgumentError
+from .schedule import Stage
 
-__all__ = ["OPTIMIZERS", "WEIGHTINGS", "AREA_MODES", "Stage", "FitOptions", "StartResult", "FitResult",
-           "parse_schedule", "fits_area"]
+__all__ = ["OPTIMIZERS", "WEIGHTINGS", "AREA_MODES", "FitOptions", "fits_area"]
 
 #: Optimizers: Levenberg–Marquardt on the residuals, limited-memory BFGS, dense BFGS, gradient descent.
 OPTIMIZERS = ("lm", "lbfgs", "bfgs", "gd")
@@ -26,65 +21,6 @@ WEIGHTINGS = ("relative", "absolute")
 #: How a_00 (the area) is treated in a harmonic fit: "auto" fixes it to the target's true area when known and
 #: fits it (started from the Weyl estimate) otherwise; "fixed" requires a known or estimated area; "fit" frees it.
 AREA_MODES = ("auto", "fixed", "fit")
-
-
-@dataclass(frozen=True)
-class Stage:
-    """One stage of a fit schedule.
-
-    Attributes
-    ----------
-    lmax_factor : int or None
-        Degree La of ρ fitted in this stage (harmonic fits only); None: the model's full La.  Coefficients of
-        higher degree stay 0; the ones this stage adds receive a small seeded random perturbation, because at an
-        even ρ the gradient along odd degrees is exactly 0 (the parity saddle, NOTES.md).
-    numeig : int or None
-        Number of eigenvalues matched (λ₀ = 0 included); None: all of the target's.
-    max_iter : int or None
-        Iterations of this stage; None: :attr:`FitOptions.max_iter`.
-    hops : bool
-        Run the basin hops (:attr:`FitOptions.basin_hops`) at the end of this stage too, not only after the last
-        one: a global search while the problem is small and its moves are cheap (see :func:`degree_ramp`).
-    """
-
-    lmax_factor: int | None = None
-    numeig: int | None = None
-    max_iter: int | None = None
-    hops: bool = False
-
-    def __post_init__(self):
-        check_int(self.lmax_factor, "Stage.lmax_factor", allow_none=True, minimum=0)
-        check_int(self.numeig, "Stage.numeig", allow_none=True, minimum=2)
-        check_int(self.max_iter, "Stage.max_iter", allow_none=True, minimum=1)
-        if not isinstance(self.hops, bool):
-            raise InvalidArgumentError(f"Stage.hops must be True or False, got {self.hops!r}")
-
-
-def parse_schedule(text: str) -> tuple[Stage, ...]:
-    """Stages from the command-line syntax ``"2,4,8,15"`` (degrees) or ``"2:40,4:80,8"`` (degree:numeig); an
-    entry ending in ``h`` (``"6:64h"``) runs the basin hops at the end of its stage (:attr:`Stage.hops`).
-
-    Raises
-    ------
-    InvalidArgumentError
-        If an entry is not ``L`` or ``L:K`` with integers, optionally followed by ``h``.
-    """
-    if not isinstance(text, str) or not text.strip():
-        raise InvalidArgumentError(f"a schedule is a comma-separated list like '2,4,8,15', got {text!r}")
-    stages = []
-    for item in text.split(","):
-        entry = item.strip()
-        hops = entry.endswith("h")
-        parts = entry.removesuffix("h").split(":")
-        try:
-            nums = [int(p) for p in parts]
-        except ValueError:
-            raise InvalidArgumentError(f"schedule entry {item!r} is not 'L' or 'L:K' with integers "
-                                       "(optionally followed by 'h')") from None
-        if len(nums) not in (1, 2):
-            raise InvalidArgumentError(f"schedule entry {item!r} is not 'L' or 'L:K'")
-        stages.append(Stage(lmax_factor=nums[0], numeig=nums[1] if len(nums) == 2 else None, hops=hops))
-    return tuple(stages)
 
 
 @dataclass(frozen=True)
@@ -279,136 +215,3 @@ def fits_area(options: FitOptions, target) -> bool:
     return options.area == "fit" or (options.area == "auto" and target.area is None)
 
 
-@dataclass(frozen=True)
-class StartResult:
-    """The outcome of one start.
-
-    Attributes
-    ----------
-    index : int
-        Start number i (its random start is drawn from ``default_rng([seed, i])``).
-    params : (nparams,) array
-        Final parameters: harmonic coefficients a of ρ (flat, l*l + l + m) or per-vertex factors c.
-    energy : float
-        Final energy (with the regularizer).
-    relative_residual : float
-        max_i |λ_i − λ*_i| / λ*_i over the matched eigenvalues, i ≥ 1.
-    iterations : int
-        Iterations over all stages.
-    seconds : float
-        Wall time of this start.
-    status : str
-        Why the last stage stopped ("residual_tol", "step_tol", "energy_tol", "max_iter", "interrupted", ...).
-    history : (iterations + 1, 3) array
-        Columns: stage index, energy, relative residual, after each iteration (row 0: the start).
-    eigenvalues : (k,) array
-        Final matched eigenvalues.
-    success : bool
-        relative_residual ≤ :attr:`FitOptions.success_tol`.
-    """
-
-    index: int
-    params: np.ndarray
-    energy: float
-    relative_residual: float
-    iterations: int
-    seconds: float
-    status: str
-    history: np.ndarray = field(repr=False)
-    eigenvalues: np.ndarray = field(repr=False)
-    success: bool = False
-
-
-@dataclass(frozen=True)
-class FitResult:
-    """Result of :func:`~shspec.inverse.fit`.
-
-    Attributes
-    ----------
-    starts : list of StartResult
-        Every start, in order of their index.
-    solutions : list of int
-        Indices into ``starts`` of the distinct local solutions, best (lowest energy) first.
-    target : Target
-        What was fitted.
-    options : FitOptions
-    model : SpectralModel
-        The discretization whose parameters ``params`` are.
-    seconds : float
-        Time spent in the starts, summed over them and over every process of a resumed fit.
-    interrupted : bool
-        The fit was stopped by Ctrl-C; ``starts`` holds what was done, the best state included.
-    """
-
-    starts: list
-    solutions: list
-    target: object
-    options: FitOptions
-    model: object
-    seconds: float
-    interrupted: bool = False
-
-    @property
-    def best(self) -> StartResult:
-        """The start of lowest energy."""
-        return self.starts[self.solutions[0]]
-
-    @property
-    def success_count(self) -> int:
-        """Number of starts with a final relative residual ≤ success_tol."""
-        return sum(s.success for s in self.starts)
-
-    def factor(self):
-        """The best solution as a harmonic :class:`~shspec.sphere.factor.ConformalFactor` (a mesh fit's factors
-        expanded in harmonics, :meth:`~shspec.model.SpectralModel.to_factor`)."""
-        return self.model.to_factor(self.best.params)
-
-    def identifiability(self):
-        """What the matched eigenvalues determine at the best solution
-        (:func:`~shspec.inverse.identifiability.identifiability`, with its final residuals).  Computed once."""
-        if "_identifiability" not in self.__dict__:
-            best = self.best
-            k = best.eigenvalues.size
-            ref = self.target.eigenvalues[:k]
-            rel = np.zeros(k)
-            rel[1:] = (best.eigenvalues[1:] - ref[1:]) / ref[1:]
-            # frozen: the memo goes straight into the instance dict (it is derived, not state)
-            object.__setattr__(self, "_identifiability", identifiability(
-                self.model, best.params, k, fit_area=fits_area(self.options, self.target), residuals=rel))
-        return self.__dict__["_identifiability"]
-
-    def alignment(self):
-        """The best solution, as harmonic ρ, aligned with the target's truth up to Möbius and O(3)
-        (:func:`~shspec.inverse.align.align`); None when the target knows no truth.  Computed once (an alignment
-        takes seconds).
-
-        Raises
-        ------
-        NotPositiveError
-            The solution's harmonic expansion or the truth is not positive, so it cannot be Möbius-centred (a
-            low-degree expansion of extreme per-vertex factors can dip below 0).
-        """
-        if "_alignment" not in self.__dict__:
-            try:
-                value = None if self.target.truth is None else align(self.factor(), self.target.truth)
-            except NotPositiveError as exc:
-                value = exc
-            object.__setattr__(self, "_alignment", value)
-        value = self.__dict__["_alignment"]
-        if isinstance(value, NotPositiveError):
-            raise value
-        return value
-
-    def to_summary(self) -> dict:
-        """A JSON-ready summary: model, target, options, energies and residuals of every start, the best solution
-        as cilm, and its errors against the truth when the target knows it (:func:`~shspec.inverse.output.summary`)."""
-        from .output import summary  # output imports this module
-
-        return summary(self)
-
-    def write(self, directory, *, figures: bool = True):
-        """Write result.h5, summary.json and (if ``figures``) the PNG figures into ``directory`` (created); returns
-        its path (:func:`~shspec.inverse.output.write_result`)."""
-        from .output import write_result  # output imports this module
-
-        return write_result(self, directory, figures=figures)

@@ -18,7 +18,7 @@ from ..errors import InvalidArgumentError, NotPositiveError
 from ..io import ensure_directory
 from . import plots
 from .checkpoint import options_dict, save_result
-from .options import FitResult
+from .results import FitResult
 
 __all__ = ["summary", "write_result"]
 

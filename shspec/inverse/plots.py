@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import InvalidArgumentError
 from ..sphere.factor import ConformalFactor
-from .options import FitResult
+from .results import FitResult
 
 __all__ = ["plot_factors", "plot_history", "plot_residuals"]
 

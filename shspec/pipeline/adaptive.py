@@ -17,7 +17,8 @@ import numpy as np
 from ..checks import check_int, check_options
 from ..errors import InvalidArgumentError
 from ..inverse.multistart import fit
-from ..inverse.options import FitOptions, FitResult
+from ..inverse.options import FitOptions
+from ..inverse.results import FitResult
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.refine import mesh_quality, refine_sphere
 from ..mesh.shapes import icosphere

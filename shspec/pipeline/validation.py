@@ -29,7 +29,7 @@ from ..embed.render import render_mesh
 from ..embed.distances import SurfaceDistance, surface_distance
 from ..embed.embed import EmbedOptions, EmbedResult, embed
 from ..errors import InvalidArgumentError, NotPositiveError, ShspecError
-from ..galerkin.solver import HarmonicModel
+from ..galerkin.model import HarmonicModel
 from ..inverse import FitOptions, align, fit, mesh_target
 from ..io import ensure_directory
 from ..mesh.bridge import fit_harmonic, mesh_band_limit

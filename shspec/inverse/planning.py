@@ -31,20 +31,13 @@ from ..checks import check_float, check_int
 from ..errors import InvalidArgumentError
 from ..gaunt.cache import get_table
 from ..gaunt.table import MAX_BASIS_DEGREE
-from ..inverse.identifiability import identifiability_by_numeig
+from ..galerkin.model import HarmonicModel
+from ..galerkin.truncation import DEFAULT_TRUNCATION_TOL, basis_degree_for
 from ..sphere.factor import ConformalFactor
 from ..sphere.random import random_centred_coefficients
-from .solver import HarmonicModel
-from .truncation import DEFAULT_TRUNCATION_TOL
+from .identifiability import identifiability_by_numeig
 
-__all__ = ["NumeigPlan", "basis_degree_for", "converged_basis_degree", "candidate_numeigs", "plan_numeig"]
-
-
-def basis_degree_for(numeig: int, lmax_factor: int) -> int:
-    """The smallest Lb ≥ La with (Lb + 1)² ≥ 1.5·K (module notes)."""
-    numeig = check_int(numeig, "numeig", minimum=2)
-    lmax_factor = check_int(lmax_factor, "lmax_factor", minimum=0)
-    return max(int(np.ceil(np.sqrt(1.5 * numeig))) - 1, lmax_factor)
+__all__ = ["NumeigPlan", "converged_basis_degree", "candidate_numeigs", "plan_numeig"]
 
 
 #: Degrees of basis added per Gaunt table while :func:`converged_basis_degree` scans upwards.

@@ -1,0 +1,119 @@
+"""Running one start through the stages of a schedule, with checkpoints, the hops and a clean Ctrl-C."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+from ..model import SpectralModel
+from .hops import basin_hop, orient_new_block
+from .optimize import make_optimizer
+from .problem import FitProblem, StartProgress
+from .results import StartResult
+
+__all__ = ["run_start"]
+
+
+def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> StartResult:
+    """Run (or continue) one start through the remaining stages.
+
+    Parameters
+    ----------
+    problem : FitProblem
+    progress : StartProgress
+        A fresh start (``state`` None, ``stage`` 0, ``base`` the random start) or one loaded from a checkpoint.
+        It is updated after every iteration, so that a caller catching ``KeyboardInterrupt`` holds the best state.
+    checkpoint : callable, optional
+        ``checkpoint(progress)``, called every ``options.checkpoint_every`` iterations.
+
+    Returns
+    -------
+    StartResult
+    """
+    opt = problem.options
+    t0 = time.perf_counter() - progress.seconds
+    rng_seed = (opt.seed, progress.index)
+    params = progress.base
+    last = len(problem.stages) - 1
+    if progress.stage > last:  # resumed during the basin hops: restore the state the stages ended in
+        obj = problem.objective(last, progress.base)
+        ev = obj.evaluate(obj.initial())
+        progress.params, progress.eigenvalues = progress.base, ev.eigenvalues
+        progress.energy, progress.relative_residual = ev.energy, ev.relative_residual
+    for s in range(progress.stage, len(problem.stages)):
+        resumed = progress.state is not None and s == progress.stage
+        if not resumed and s == progress.stage and progress.history:
+            # stopped before the stage's first iteration or in the hops after its last: run it again from its
+            # start, which already holds its perturbation, and forget what it had recorded
+            params = progress.base
+            progress.history = [row for row in progress.history if row[0] < s]
+        elif not resumed:
+            params = problem.enter_stage(s, params, np.random.default_rng([*rng_seed, s + 1]))
+            progress.stage, progress.base = s, params
+        obj = problem.objective(s, progress.base)
+        optimizer = make_optimizer(problem.optimizer, obj, obj.initial(), opt, progress.state if resumed else None)
+        max_iter = problem.stages[s].max_iter or opt.max_iter
+
+        def record():
+            progress.seconds = time.perf_counter() - t0
+            progress.params = problem.merge(s, progress.base, obj, optimizer.x)
+            progress.energy, progress.relative_residual = optimizer.ev.energy, optimizer.ev.relative_residual
+            progress.eigenvalues = optimizer.ev.eigenvalues
+
+        if not resumed:
+            progress.history.append((s, optimizer.ev.energy, optimizer.ev.relative_residual))
+        record()
+        while optimizer.status is None and optimizer.iteration < max_iter:
+            optimizer.step()
+            progress.state = optimizer.state()
+            progress.history.append((s, optimizer.ev.energy, optimizer.ev.relative_residual))
+            record()
+            if opt.progress and sys.stderr.isatty():
+                print(f"\r  start {progress.index} stage {s} it {optimizer.iteration:4d}  E = {optimizer.ev.energy:.3e}"
+                      f"  max rel. residual = {optimizer.ev.relative_residual:.3e}   ", end="", file=sys.stderr,
+                      flush=True)
+            if checkpoint is not None and opt.checkpoint_every and (len(progress.history) - 1) % opt.checkpoint_every == 0:
+                checkpoint(progress)
+        progress.status = optimizer.status or "max_iter"
+        progress.state = None
+        if opt.orient_blocks and _raises_level(problem, s) and progress.relative_residual > opt.success_tol:
+            orient_new_block(problem, progress, s)
+        if opt.progress:
+            basis = "" if problem.bases[s] is None else f", basis degree {problem.bases[s]}"
+            print(f"\r  start {progress.index} stage {s} ({_level_text(obj.model, problem.level(s))}{obj.target.size} "
+                  f"eigenvalues{basis}): "
+                  f"{progress.status} after {optimizer.iteration} iterations, max rel. residual "
+                  f"{optimizer.ev.relative_residual:.3e}", file=sys.stderr, flush=True)
+        if (s < last and problem.stages[s].hops and opt.basin_hops
+                and progress.relative_residual > opt.success_tol):
+            # not checkpointed apart: a resume inside these hops runs stage s again, which repeats them exactly
+            progress.status = basin_hop(problem, progress, progress.status, s)
+        params = progress.params
+    if opt.basin_hops and progress.relative_residual > opt.success_tol:
+        if progress.stage <= last:
+            # checkpoint the end of the stages, so that a resume repeats only the (deterministic) hops
+            progress.stage, progress.base = last + 1, progress.params
+            if checkpoint is not None and opt.checkpoint_every:
+                checkpoint(progress)
+        progress.status = basin_hop(problem, progress, progress.status, last)
+    return progress.result(progress.status, time.perf_counter() - t0, opt.success_tol)
+
+
+def _raises_level(problem: FitProblem, s: int) -> bool:
+    """Whether stage s raises the level of stage s − 1, i.e. fits a block no earlier stage had."""
+    levels = problem.model.levels()
+    if not levels or s == 0:
+        return False
+    top = levels[-1]
+    old = top if problem.level(s - 1) is None else problem.level(s - 1)
+    new = top if problem.level(s) is None else problem.level(s)
+    return new > old
+
+
+def _level_text(model: SpectralModel, level: int | None) -> str:
+    if not model.levels():
+        return ""
+    return f"degree {max(model.levels()) if level is None else level}, "
+

@@ -1,0 +1,167 @@
+"""One fit problem and where a start of it is.
+
+A :class:`FitProblem` holds a model, a target and the options, and builds the objective of each stage from what the
+model says of itself (:class:`~shspec.model.SpectralModel`): the level a stage restricts it to, the free parameters,
+the transform of the variables, the random start and the perturbation a stage adds when it raises the level.
+A :class:`StartProgress` is where one start is: enough to checkpoint it, to resume it, or to report it after Ctrl-C.
+Every random choice of start i is drawn from ``default_rng([seed, i])`` and, for the perturbation a stage adds to
+its new level, ``default_rng([seed, i, stage + 1])``: a run is reproducible, and a resumed run draws the same numbers.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InvalidArgumentError
+from ..model import SpectralModel
+from ..targets import Target
+from .energy import Objective, eigenvalue_weights
+from .options import FitOptions, fits_area
+from .parametrization import Parametrization
+from .results import StartResult
+from .schedule import Stage, default_schedule
+
+__all__ = ["FitProblem", "StartProgress"]
+
+#: Size of the perturbation given to the parameters a stage adds, relative to the one of a random start: enough to
+#: leave the parity saddle, small enough not to undo what the earlier stages found.
+_NEW_DEGREE_SCALE = 0.05
+
+
+class FitProblem:
+    """A model, a target and the options, and the objective of each stage.
+
+    Parameters
+    ----------
+    model : SpectralModel
+    target : Target
+    options : FitOptions
+    init : (nparams,) array, optional
+        Starting point of start 0 (the other starts stay random); with ``options.schedule`` None the fit is then one
+        stage at full resolution.
+
+    Raises
+    ------
+    InvalidArgumentError
+        If a stage asks for more eigenvalues than the target has or for a level the model does not have, or the
+        area is to be fixed but is unknown.
+    BandLimitError
+        If a stage's degree exceeds the model's.
+    """
+
+    def __init__(self, model: SpectralModel, target: Target, options: FitOptions, *, init=None):
+        if not isinstance(model, SpectralModel):
+            raise InvalidArgumentError(f"model must be a SpectralModel, got {type(model).__name__}")
+        if not isinstance(target, Target):
+            raise InvalidArgumentError(f"target must be a Target, got {type(target).__name__}")
+        if not isinstance(options, FitOptions):
+            raise InvalidArgumentError(f"options must be FitOptions, got {type(options).__name__}")
+        self.model, self.target, self.options = model, target, options
+        self.optimizer = options.optimizer or model.default_optimizer
+        if init is not None:
+            init = np.array(init, dtype=float)
+            if init.shape != (model.nparams,) or not np.all(np.isfinite(init)):
+                raise InvalidArgumentError(f"a starting point must be a finite array of {model.nparams} parameters "
+                                           f"({model.describe()}), got shape {init.shape}")
+        self.init = init
+        if options.schedule is not None:
+            schedule = options.schedule
+        else:
+            # a given start already holds the coarse shape: one stage at full resolution, not a ramp that would
+            # truncate it to the first level
+            schedule = (Stage(),) if init is not None else default_schedule(model, target.numeig)
+        self.stages = schedule or (Stage(),)
+        for st in self.stages:
+            if st.numeig is not None and st.numeig > target.numeig:
+                raise InvalidArgumentError(f"a stage matches {st.numeig} eigenvalues; the target has {target.numeig}")
+            model.restrict(st.lmax_factor)  # raises for a level the model does not have
+        if options.area == "fixed" and target.area is None and target.numeig < 4:
+            raise InvalidArgumentError("a fixed area needs a known area or a spectrum to estimate it from")
+        self.fit_area = fits_area(options, target)
+        self.area = target.area_estimate()
+        # chosen here, once, at a reference: a start's path may then not depend on where the fit runs
+        tol = options.stage_basis_tol
+        # a stage that hops tests success at success_tol: on a basis only good to 1e-5 the truth itself would fail
+        # it (the blob's 6:64 stage on Lb' = 14 ends every start at 1.5e-6, and its hops go on)
+        self.bases = [None if tol is None or s == len(self.stages) - 1
+                      else model.stage_basis(st.lmax_factor, st.numeig or target.numeig,
+                                             min(tol, options.success_tol) if st.hops else tol)
+                      for s, st in enumerate(self.stages)]
+        if options.progress and any(b is not None for b in self.bases):
+            print("stage bases (degree:eigenvalues -> basis degree): " + ", ".join(
+                f"{st.lmax_factor}:{st.numeig or target.numeig} -> {b}" for st, b in zip(self.stages, self.bases)
+                if b is not None), file=sys.stderr, flush=True)
+
+    def level(self, s: int) -> int | None:
+        """The level (harmonic models: the factor's degree) of stage s, None for the model's own."""
+        return self.stages[s].lmax_factor
+
+    def initial(self, rng: np.random.Generator, index: int = 0) -> np.ndarray:
+        """Start ``index``: the given starting point for start 0 if there is one, otherwise a random
+        symmetry-broken start (nparams,) of the model at the first stage's level, with the area."""
+        if index == 0 and self.init is not None:
+            return self.init.copy()
+        return self.model.random_start(rng, self.options.start_amplitude, self.area, self.level(0))
+
+    def enter_stage(self, s: int, params: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Parameters at the start of stage s: what its level adds gets a small random perturbation."""
+        if s == 0:
+            return params
+        return self.model.enter_level(params, self.level(s - 1), self.level(s), rng,
+                                      _NEW_DEGREE_SCALE * self.options.start_amplitude)
+
+    def objective(self, s: int, params: np.ndarray) -> Objective:
+        """The energy of stage s with the fixed parameters taken from ``params`` (nparams,)."""
+        st = self.stages[s]
+        k = self.target.numeig if st.numeig is None else st.numeig
+        lam = self.target.eigenvalues[:k]
+        sub = self.model.restrict(self.level(s), self.bases[s])
+        par = Parametrization.at(self.model.to_level(params, self.level(s)), sub.free_parameters(self.fit_area),
+                                 sub.transform)
+        return Objective(sub, lam, eigenvalue_weights(lam, self.options.weights), par, self.options.reg)
+
+    def merge(self, s: int, params: np.ndarray, objective: Objective, x) -> np.ndarray:
+        """Full parameters after stage s: the stage's parameters written back into ``params``."""
+        return self.model.from_level(objective.params(x), params, self.level(s))
+
+
+@dataclass
+class StartProgress:
+    """Where a start is: enough to checkpoint it or to report it after Ctrl-C.
+
+    Attributes
+    ----------
+    index, stage : int
+        Start and stage; ``stage`` = the number of stages once they are all done and the basin hops run.
+    base : (nparams,) array
+        Full parameters at the stage's start (after its perturbation).
+    state : dict or None
+        The optimizer's state after its last completed iteration.
+    history : list of (stage, energy, relative residual)
+    seconds : float
+        Time spent in this start before the current run (resumed starts).
+    """
+
+    index: int
+    stage: int
+    base: np.ndarray
+    state: dict | None
+    history: list = field(default_factory=list)
+    seconds: float = 0.0
+    params: np.ndarray | None = None
+    energy: float = np.inf
+    relative_residual: float = np.inf
+    eigenvalues: np.ndarray | None = None
+    status: str = "max_iter"
+
+    def result(self, status: str, seconds: float, success_tol: float) -> StartResult:
+        """The start's outcome so far (its best state: the optimizers only accept descent)."""
+        return StartResult(index=self.index, params=self.params.copy(), energy=float(self.energy),
+                           relative_residual=float(self.relative_residual),
+                           iterations=max(len(self.history) - 1, 0), seconds=seconds, status=status,
+                           history=np.array(self.history, dtype=float).reshape(-1, 3),
+                           eigenvalues=np.array(self.eigenvalues), success=bool(self.relative_residual <= success_tol))
+
