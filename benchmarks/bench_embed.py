@@ -23,7 +23,7 @@ import trimesh
 
 from shspec.embed import edge_length_error, embed, surface_distance
 from shspec.mesh.cmcf import cmcf
-from shspec.mesh.io import load_mesh
+from shspec.mesh.mesh_files import load_mesh
 from shspec.mesh.shapes import blob
 from shspec.mesh.triangle_mesh import TriangleMesh
 

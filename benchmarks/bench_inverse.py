@@ -206,7 +206,7 @@ def bench_goal_blob(report, starts, workers):
 
 
 def bench_bunny(report, max_iter, numeig):
-    from shspec.mesh.io import load_mesh
+    from shspec.mesh.mesh_files import load_mesh
     from shspec.mesh.model import MeshModel
 
     section = {"setting": f"PL fit from the target's own cMCF sphere, {numeig} PL eigenvalues, start: round "

@@ -40,7 +40,7 @@ from shspec.inverse.energy import Objective, eigenvalue_weights  # noqa: E402
 from shspec.inverse.optimize import make_optimizer  # noqa: E402
 from shspec.inverse.options import FitOptions  # noqa: E402
 from shspec.inverse.parametrization import Parametrization  # noqa: E402
-from shspec.model import Spectrum  # noqa: E402
+from shspec.spectral_model import Spectrum  # noqa: E402
 from shspec.sphere.factor import ConformalFactor  # noqa: E402
 from shspec.sphere.harmonics import degrees  # noqa: E402
 from shspec.sphere.random import random_coefficients  # noqa: E402

@@ -36,12 +36,13 @@ import lapy  # noqa: E402
 from lapy.diffgeo import tria_mean_curvature_flow  # noqa: E402
 from shspec.mesh.cmcf import cmcf, roundness  # noqa: E402
 from shspec.mesh.cotan import vertex_areas  # noqa: E402
-from shspec.mesh.io import load_mesh  # noqa: E402
+from shspec.mesh.mesh_files import load_mesh  # noqa: E402
+from shspec.mesh.builtin import builtin_mesh_path  # noqa: E402
 from shspec.mesh.model import MeshModel  # noqa: E402
 from shspec.mesh.shapes import icosphere  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-MESHES = HERE.parents[1] / "shared" / "data" / "meshes"
+MESHES = builtin_mesh_path("bunny").parent
 LAPY_LADDER = (5, 10, 15, 20, 25, 30, 35, 40, 50, 60, 80, 100, 150, 200)
 #: lapy's flow counts as equally round within this factor (see the module notes).
 SAME_ROUNDNESS = 1.02

@@ -34,7 +34,7 @@ from common import load_average, machine_info, threads, write_json  # noqa: E402
 
 from shspec.mesh.eigen import EigenOptions, mesh_spectrum  # noqa: E402
 from shspec.mesh.implicit import euler_characteristic, ring_chain  # noqa: E402
-from shspec.mesh.io import load_mesh  # noqa: E402
+from shspec.mesh.mesh_files import load_mesh  # noqa: E402
 from shspec.mesh.shapes import blob, icosphere  # noqa: E402
 from shspec.mesh.triangle_mesh import TriangleMesh  # noqa: E402
 from shspec.mesh.validate import validate_mesh  # noqa: E402

@@ -27,7 +27,7 @@ from .mesh.bridge import fit_harmonic, mesh_band_limit
 from .mesh.cmcf import CMCFResult, cmcf
 from .mesh.cotan import cotan_stiffness, vertex_areas
 from .mesh.eigen import eigenpairs, mesh_spectrum
-from .mesh.io import load_mesh
+from .mesh.mesh_files import load_mesh
 from .mesh.shapes import star_surface
 from .mesh.triangle_mesh import TriangleMesh
 from .sphere.factor import ConformalFactor

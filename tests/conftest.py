@@ -9,10 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from shspec.mesh.builtin import builtin_mesh_path
+
 _CACHE = tempfile.mkdtemp(prefix="shspec-test-cache-")
 os.environ["SHSPEC_CACHE"] = _CACHE
 
-SHARED_MESHES = Path(__file__).resolve().parents[2] / "shared" / "data" / "meshes"
 
 
 @pytest.fixture(scope="session")
@@ -23,10 +24,8 @@ def cache_dir() -> Path:
 
 @pytest.fixture(scope="session")
 def shared_meshes() -> Path:
-    """The shared genus-0 test meshes (bunny, spot, blub) beside the repository; skips the test when absent."""
-    if not SHARED_MESHES.is_dir():
-        pytest.skip(f"the shared test meshes are not at {SHARED_MESHES}")
-    return SHARED_MESHES
+    """The folder of the genus-0 test meshes shipped with shspec (bunny, spot, blub at 600, 1200 and full size)."""
+    return builtin_mesh_path("bunny").parent
 
 
 @pytest.fixture

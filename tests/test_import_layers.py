@@ -3,7 +3,7 @@
 Every module of ``shspec`` belongs to one unit (a subpackage or a top-level module) and every unit to one layer of
 :data:`LAYERS`, listed from the bottom up.  A module may import modules of its own unit and of units in lower layers;
 units of the same layer are peers and do not import each other (the Galerkin solver and the mesh path are both
-discretizations behind the :mod:`shspec.model` seam).  Importing ``a.b.c`` executes the packages ``a`` and ``a.b``
+discretizations behind the :mod:`shspec.spectral_model` seam).  Importing ``a.b.c`` executes the packages ``a`` and ``a.b``
 too, so those count as imported, except the importing module's own parents (already executing).
 """
 
@@ -18,8 +18,8 @@ import shspec
 LAYERS = (
     ("_version", "errors"),
     ("checks",),
-    ("atomic", "io", "resources", "damping", "plotstyle", "parallel", "report"),
-    ("model", "sphere"),
+    ("atomic", "outputs", "resources", "damping", "plotstyle", "parallel", "report"),
+    ("spectral_model", "sphere"),
     ("gaunt",),
     ("galerkin", "mesh"),
     ("targets", "embed"),

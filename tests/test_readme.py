@@ -1,37 +1,35 @@
 """Every snippet of the README runs: python blocks are executed, shell blocks are run line by line.
 
 ``pip install`` steps of shell lines are skipped (the test environment is the installed project, which CI builds
-from the same command); everything after them runs for real.
+from the same command); everything after them runs for real, in a scratch folder that holds a copy of the
+repository's ``docs/`` and ``benchmarks/results/`` (the documentation build reads both), so that nothing is written
+into the checkout.  The documentation build of the README is the test that the site builds with warnings as errors.
 """
 
 import os
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
 BLOCKS = re.findall(r"```(\w+)\n(.*?)```", README.read_text(), flags=re.S)
-SHARED = README.parent.parent / "shared"
 
 
 @pytest.fixture
 def workdir(tmp_path, monkeypatch):
-    """A scratch copy of the repository's surroundings: snippets use ../shared as a user at the repo root would."""
-    if (SHARED / "data").is_dir():
-        (tmp_path / "shared").symlink_to(SHARED)
+    """A scratch folder with the repository's docs and benchmark results, as a user at the repo root has them."""
     work = tmp_path / "main"
-    work.mkdir()
+    shutil.copytree(ROOT / "docs", work / "docs", ignore=shutil.ignore_patterns("_build", "auto_examples", "api",
+                                                                                "generated"))
+    shutil.copytree(ROOT / "benchmarks" / "results", work / "benchmarks" / "results")
     monkeypatch.chdir(work)
     return work
-
-
-def _needs_shared(code):
-    if "../shared" in code and not (SHARED / "data").is_dir():
-        pytest.skip(f"the snippet reads ../shared, which is not at {SHARED}")
 
 
 def test_quickstart_has_exactly_two_commands():
@@ -45,10 +43,10 @@ def test_quickstart_has_exactly_two_commands():
     assert lines[1] in ci
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("index", [i for i, (lang, _) in enumerate(BLOCKS) if lang == "python"])
 def test_python_snippet(index, workdir):
     code = BLOCKS[index][1]
-    _needs_shared(code)
     exec(compile(code, f"README.md python block {index}", "exec"), {"__name__": "__readme__"})
 
 
@@ -66,9 +64,9 @@ def _commands(body):
             yield part
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("index", [i for i, (lang, _) in enumerate(BLOCKS) if lang == "bash"])
 def test_shell_snippet(index, workdir):
-    _needs_shared(BLOCKS[index][1])
     env = dict(os.environ, MPLBACKEND="Agg")
     bindir = Path(sys.executable).parent
     env["PATH"] = f"{bindir}{os.pathsep}{env.get('PATH', '')}"

@@ -12,7 +12,7 @@ from ..atomic import atomic_path
 from ..embed.embed import EmbedOptions, embed
 from ..errors import InvalidArgumentError, OutputError
 from ..pipeline.validation import ValidationOptions, validate_target, write_report
-from ..mesh.io import load_mesh, save_mesh
+from ..mesh.mesh_files import load_mesh, save_mesh
 
 
 def register(subparsers) -> None:

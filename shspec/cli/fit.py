@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import InvalidArgumentError, OutputError
 from ..galerkin import HarmonicModel
+from .help_format import HelpFormatter
 from ..inverse.planning import plan_numeig
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions
@@ -24,7 +25,7 @@ from ..inverse.schedule import (DEFAULT_STAGE_MAX_ITER, default_hop_degree, degr
                                parse_schedule)
 from ..targets import TARGET_SOURCES, Target, parse_target, read_spectrum
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
-from ..mesh.io import load_mesh
+from ..mesh.mesh_files import load_mesh
 from ..mesh.refine import eigenvalue_errors, trusted_numeig
 from ..pipeline.adaptive import AdaptiveOptions, adaptive_fit
 from ..parallel import make_executor
@@ -92,115 +93,70 @@ def register(subparsers) -> None:
     d = FitOptions()
     p = subparsers.add_parser(
         "fit", help="fit a conformal factor rho to a target spectrum (the inverse problem)",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-        description="Fit rho (harmonic coefficients, or per-vertex factors with --model mesh) to a target spectrum "
-        "from several random symmetry-broken starts through a schedule of stages, and write result.h5, "
-        "summary.json and PNG figures to DIR. A start succeeds when its largest relative eigenvalue residual "
-        f"max_i |lambda_i - lambda*_i| / lambda*_i is at most {d.success_tol:g}.")
+        formatter_class=HelpFormatter, usage="shspec fit --target TARGET --out DIR [options]",
+        description="Fit rho to a target spectrum from several random starts and write result.h5, summary.json "
+        "and figures to DIR. The common case needs only --target and --out; the user guide explains the search.")
     p.add_argument("--target", required=True,
-                   help="blob | star:l,m,p | mesh:PATH | spectrum:FILE (text with one eigenvalue per line, or the "
-                   "last column of 'shspec mesh-spectrum' output; .npy; .json)")
-    p.add_argument("--lmax", type=int, default=None,
-                   help="basis band limit Lb (default: with --numeig, 30; without, the planned Lb: the smallest at "
-                   "which the reference's first K eigenvalues change by at most 1e-6 from Lb - 2)")
-    p.add_argument("--lmax-factor", type=int, default=15, help="factor band limit La")
-    p.add_argument("--numeig", type=_numeig, default=None,
-                   help="eigenvalues matched, lambda_0 = 0 included (a spectrum: file's first NUMEIG; all if fewer). "
-                   "Default for harmonic fits: planned, the smallest K of shspec identifiability's candidates that "
-                   "determines a random reference rho of degree La to 1e-8 from eigenvalues fitted to 1e-13 (noise "
-                   "gain <= 1e5; at La = 15: K = 289, Lb = 36; the blob, without degrees above 6, needs 704: ask "
-                   "shspec identifiability --target), capped by a spectrum file's length; it is printed and "
-                   "written to summary.json. For mesh fits 256. "
-                   "'auto' for mesh targets: those whose estimated discretization error (against one 4-to-1 "
-                   "subdivision of the mesh) is at most --numeig-tol, of at most min(n/4, 300); 'all' for mesh "
-                   "targets: n - 1, every eigenvalue of the n-vertex mesh (on bunny_600, R = 0.05, all 599 gave "
-                   "log-factor correlation 0.997 against 0.48 with 100)")
-    p.add_argument("--numeig-tol", type=float, default=0.01,
-                   help="relative eigenvalue error tolerated by --numeig auto")
-    p.add_argument("--schedule", default="auto",
-                   help="stages: 'auto' (the model's default: the degree ramp for harmonic fits, every stage but "
-                   "the last capped at 40 iterations, which with the default basin hops made 8 of 8 blob starts "
-                   "succeed, and above degree 6 hops at degree 6, see --hop-degree; the numeig ramp for meshes), "
-                   "'degree-ramp' (the same ramp), 'ramp' "
-                   "(numeig 16, 36, 64, ... at full degree: 2 of 8), 'none' (one stage: 0 of 8), degrees "
-                   "'2,4,8,15' or degree:numeig pairs '6:16,6:64,6:120'; an 'h' after a stage ('6:64h') runs "
-                   "the basin hops after it too")
-    p.add_argument("--hop-degree", type=int, default=None, metavar="D",
-                   help="with --schedule auto or degree-ramp (harmonic fits): the stage that raises the degree to D "
-                   "runs to convergence on a basis good to the success tolerance, then the basin hops, before "
-                   "the higher degrees are added: a global search while the stage is small (0: hops after the last "
-                   "stage only; default: 6 when --lmax-factor is above 6)")
-    p.add_argument("--basin-hops", type=int, default=d.basin_hops,
-                   help="after the last stage, up to N accepted escape moves (harmonic fits: half-turns and sign "
-                   "flips of single degree blocks, then the octahedral grid of every block, see --hop-grid) to "
-                   "leave local minima; the hops end early at success or when no move helps; 0 turns them off "
-                   "(at degree 10, K = 300: 0 of 12 starts succeeded without hops, 2 of 12 with 4, 5 of 8 with 12, "
-                   "6 of 8 with 12 and the grid)")
-    p.add_argument("--hop-grid", action=argparse.BooleanOptionalAction, default=d.hop_grid,
-                   help="when no cheap move lowers the energy, try every degree block turned through the "
-                   "octahedral group (303 moves at degree 10; at most --hop-tries refitted per hop)")
-    p.add_argument("--hop-tries", type=int, default=d.hop_tries,
-                   help="at most N moves of a hop are refitted, those of lowest energy; a larger N only adds "
-                   "successes, at the cost of time in starts that fail (degree 10, K = 300, 16 starts: 144 gave "
-                   "12 successes at a median 135 s per start, 48 gave 10 at 106 s)")
-    p.add_argument("--hop-extend", type=int, default=d.hop_extend,
-                   help="a move's short refit (15 iterations) still above the energy but falling by 10 %% over "
-                   "its last 3 iterations goes on, up to N iterations in all; 15 turns this off (degree 10, K = 300, "
-                   "8 starts: 45 gave 7 successes, 15 gave 6, at the same median time)")
-    p.add_argument("--stage-basis-tol", type=_optional_tol, default=d.stage_basis_tol,
-                   help="harmonic fits: every stage but the last runs on the smallest basis degree on which its "
-                   "eigenvalues agree with those on --lmax to this relative tolerance at a reference rho (chosen "
-                   "once per fit, printed per stage); 'none': every stage on --lmax. The last stage and the basin "
-                   "hops always use --lmax")
-    p.add_argument("--reg", type=float, default=d.reg,
-                   help="regularization weight R (harmonic: R |Laplacian rho|^2; mesh: see --reg-kind)")
-    p.add_argument("--reg-kind", choices=REGULARIZER_KINDS, default="cotan-squared",
-                   help="mesh fits: 'cotan-squared', R |Ls|^2/2 with the cotan L (the study's own penalty, so its "
-                   "R = 0.05 means the same on a mesh of area 4 pi: bunny_600 with 570 eigenvalues re-embeds at "
-                   "Hausdorff 0.093 of the diagonal), 'dirichlet', R s'Ls/2 (0.102 there), or 'bilaplacian', "
-                   "R (Ls)' M^-1 (Ls)")
-    p.add_argument("--log-factors", action=argparse.BooleanOptionalAction, default=True,
-                   help="mesh fits: fit s = log c (positive for free; on bunny_600, R = 0.05, log-factor "
-                   "correlation 0.83 against -0.07 for linear factors) or c itself")
-    p.add_argument("--adaptive", action="store_true",
-                   help="mesh fits: start from a generic icosphere (--adaptive-start subdivisions) instead of the "
-                   "target's cMCF sphere and refine it where the fitted factors are large or vary fast, up to the "
-                   "target mesh's vertex count; stages and sizes go into summary.json")
-    p.add_argument("--adaptive-start", type=int, default=2, help="icosphere subdivisions of the first adaptive stage")
-    p.add_argument("--adaptive-growth", type=float, default=AdaptiveOptions.growth,
-                   help="vertex count ratio between adaptive stages (small steps let the mesh follow the fit)")
-    p.add_argument("--starts", type=int, default=d.starts, help="random starts")
-    p.add_argument("--seed", type=int, default=d.seed, help="random seed")
-    p.add_argument("--optimizer", choices=OPTIMIZERS, default=None,
-                   help="optimizer (default: the model's: lm for harmonic fits; lbfgs for mesh fits, which with every "
-                   "eigenvalue of bunny_600 reached LM's result in 11 s against 16 s, and at 1200 vertices where LM "
-                   "diverged: benchmarks/results/bench_inverse.json mesh_all)")
-    p.add_argument("--weights", choices=WEIGHTINGS, default=d.weights, help="eigenvalue weights")
-    p.add_argument("--area", choices=AREA_MODES, default=d.area, help="area treatment")
-    p.add_argument("--max-iter", type=int, default=d.max_iter, help="iterations per stage")
-    p.add_argument("--amplitude", type=float, default=d.start_amplitude, help="size of the random starts")
-    p.add_argument("--model", choices=tuple(MODELS), default="harmonic",
-                   help="fit harmonic coefficients, or per-vertex factors on the target's cMCF sphere (mesh targets)")
-    p.add_argument("--source", choices=TARGET_SOURCES, default="pl",
-                   help="spectrum of a mesh target: its cotan spectrum (pl), the cotan spectrum of its cMCF sphere "
-                   "carrying the cMCF factors (cmcf: exactly representable by --model mesh), or the harmonic one of "
-                   "its factors")
-    p.add_argument("--subdivisions", type=int, default=3, help="icosphere subdivisions of star targets")
-    p.add_argument("--init", type=Path, default=None, metavar="FILE",
-                   help="starting point of the first start: a previous fit's result.h5 or summary.json, a .npy "
-                   "array (flat coefficients or cilm; per-vertex factors for --model mesh) or a text column; with "
-                   "--schedule auto the fit from it is one stage at full degree")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="run the starts on N local processes with one BLAS thread each (results equal a serial run)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run the starts on a running Dask distributed cluster, e.g. tcp://host:8786")
-    p.add_argument("--checkpoint-every", type=int, default=d.checkpoint_every, metavar="N",
-                   help="write DIR/checkpoint.h5 every N iterations (0: never)")
-    p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.h5")
+                   help="blob | star:l,m,p | mesh:PATH or a shipped mesh (mesh:spot_600) | spectrum:FILE")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
-    p.add_argument("--quiet", action="store_true", help="no progress display")
-    p.add_argument("--allow-any-genus", action="store_true",
-                   help="fit spectrum:/mesh: targets even when their heat trace says confidently genus != 0")
+    p.add_argument("--model", choices=tuple(MODELS), default="harmonic", metavar="{harmonic,mesh}",
+                   help="harmonic coefficients of rho, or per-vertex factors on the target's cMCF sphere")
+    p.add_argument("--lmax-factor", type=int, default=15, metavar="La", help="degree La of rho (harmonic model)")
+    p.add_argument("--lmax", type=int, default=None, metavar="Lb", help="basis degree Lb (default: planned for the target)")
+    p.add_argument("--numeig", type=_numeig, default=None, metavar="K",
+                   help="eigenvalues matched, lambda_0 included: an integer, 'auto' or 'all' (mesh targets) "
+                   "(default: planned for harmonic fits, 256 for mesh fits)")
+    p.add_argument("--reg", type=float, default=d.reg, metavar="R", help="regularization weight R (dimensionless)")
+    p.add_argument("--starts", type=int, default=d.starts, metavar="N", help="random starts")
+    p.add_argument("--seed", type=int, default=d.seed, metavar="S", help="random seed")
+
+    runs = p.add_argument_group("runs")
+    runs.add_argument("--workers", type=int, default=None, metavar="N", help="run the starts on N local processes")
+    runs.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                      help="run the starts on a Dask cluster (needs shspec[dask])")
+    runs.add_argument("--checkpoint-every", type=int, default=d.checkpoint_every, metavar="N",
+                      help="write DIR/checkpoint.h5 every N iterations (0: never)")
+    runs.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.h5")
+    runs.add_argument("--init", type=Path, default=None, metavar="FILE",
+                      help="start from a result.h5, summary.json, .npy or text column")
+    runs.add_argument("--quiet", action="store_true", help="no progress display")
+    runs.add_argument("--allow-any-genus", action="store_true", help="fit a target whose heat trace says genus != 0")
+
+    mesh = p.add_argument_group("mesh targets and mesh fits")
+    mesh.add_argument("--source", choices=TARGET_SOURCES, default="pl", metavar="SRC",
+                      help="a mesh target's spectrum: cotan (pl), of its cMCF sphere (cmcf), or harmonic")
+    mesh.add_argument("--subdivisions", type=int, default=3, metavar="N", help="icosphere subdivisions of star targets")
+    mesh.add_argument("--numeig-tol", type=float, default=0.01, metavar="TOL", help="relative eigenvalue error for --numeig auto")
+    mesh.add_argument("--reg-kind", choices=REGULARIZER_KINDS, default="cotan-squared", metavar="KIND",
+                      help="penalty of mesh fits: " + ", ".join(REGULARIZER_KINDS))
+    mesh.add_argument("--log-factors", action=argparse.BooleanOptionalAction, default=True,
+                      help="fit s = log c rather than c")
+    mesh.add_argument("--adaptive", action="store_true", help="start from an icosphere and refine it as the fit goes")
+    mesh.add_argument("--adaptive-start", type=int, default=2, metavar="N", help="icosphere subdivisions of the first stage")
+    mesh.add_argument("--adaptive-growth", type=float, default=AdaptiveOptions.growth, metavar="X",
+                      help="vertex count ratio between adaptive stages")
+
+    adv = p.add_argument_group("advanced search (FitOptions)")
+    adv.add_argument("--schedule", default="auto", metavar="S",
+                     help="'auto', 'degree-ramp', 'ramp', 'none', or stages '2,4,8,15' / '6:16,6:64h' (L:K, h = hop)")
+    adv.add_argument("--hop-degree", type=int, default=None, metavar="D",
+                     help="degree whose stage hops in the degree ramp (0: none; default: 6 above degree 6)")
+    adv.add_argument("--basin-hops", type=int, default=d.basin_hops, metavar="N", help="accepted escape moves at most")
+    adv.add_argument("--hop-grid", action=argparse.BooleanOptionalAction, default=d.hop_grid,
+                     help="also try every degree block turned through the octahedral group")
+    adv.add_argument("--hop-tries", type=int, default=d.hop_tries, metavar="N", help="moves refitted per hop at most")
+    adv.add_argument("--hop-extend", type=int, default=d.hop_extend, metavar="N", help="iterations of a falling screening refit")
+    adv.add_argument("--stage-basis-tol", type=_optional_tol, default=d.stage_basis_tol, metavar="TOL",
+                     help="relative tolerance of the smaller bases of early stages, or 'none'")
+    adv.add_argument("--optimizer", choices=OPTIMIZERS, default=None, metavar="NAME",
+                     help=f"{', '.join(OPTIMIZERS)} (default: the model's, lm or lbfgs)")
+    adv.add_argument("--weights", choices=WEIGHTINGS, default=d.weights, metavar="W",
+                     help="eigenvalue weights: " + ", ".join(WEIGHTINGS))
+    adv.add_argument("--area", choices=AREA_MODES, default=d.area, metavar="MODE",
+                     help="the area a_00: " + ", ".join(AREA_MODES))
+    adv.add_argument("--max-iter", type=int, default=d.max_iter, metavar="N", help="iterations per stage")
+    adv.add_argument("--amplitude", type=float, default=d.start_amplitude, metavar="A",
+                     help="size of the random starts, relative to the mean of rho")
     p.set_defaults(func=_fit)
 
 

@@ -15,11 +15,12 @@ import numpy as np
 
 from .._version import __version__
 from ..atomic import atomic_hdf5, atomic_path
+from .help_format import HelpFormatter
 from ..errors import BandLimitError, InvalidArgumentError, TruncationWarning
 from ..galerkin.convergence import convergence, convergence_in_factor
 from ..mesh.factor_spectrum import pl_spectrum_of_factor
 from ..galerkin.solver import MAX_BASIS_DEGREE, spectrum
-from ..io import ensure_directory, write_csv
+from ..outputs import ensure_directory, write_csv
 from ..sphere.harmonics import check_degree
 from ._rho import RHO_HELP, parse_rho
 
@@ -30,7 +31,7 @@ def register(sub) -> None:
         description="Compute the first K eigenvalues of the Laplace-Beltrami operator of g = rho*g0 in the real "
         "spherical-harmonic basis of degree <= --lmax. Without arguments: a Moebius-boosted sphere, whose exact "
         "spectrum l(l+1) is printed beside for comparison. The Gaunt table is taken from the cache or built.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("--rho", default="boost:2:1,1,1", help=RHO_HELP)
     p.add_argument("--lmax", type=int, default=30, help="basis band limit Lb")
     p.add_argument("--lmax-factor", type=int, default=None,
@@ -48,7 +49,7 @@ def register(sub) -> None:
         "--factor-values, the same for truncations of rho at fixed Lb. Writes convergence.csv, convergence.json "
         "and PNG plots into --out. --pl-subdivisions adds the piecewise-linear spectrum of an icosphere carrying "
         "rho (it converges from below).",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     c.add_argument("--rho", default="boost:2:1,1,1", help=RHO_HELP)
     c.add_argument("--lmax-values", default="6,8,10,12,14,16,18,20,24",
                    help="comma-separated basis band limits")

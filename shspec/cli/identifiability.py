@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 
+from .help_format import HelpFormatter
 from ..errors import InvalidArgumentError
 from ..galerkin.truncation import basis_degree_for
 from ..inverse.planning import candidate_numeigs, plan_numeig
@@ -18,7 +19,7 @@ def register(subparsers) -> None:
     """Add ``identifiability`` to the shspec command line."""
     p = subparsers.add_parser(
         "identifiability", help="how well K eigenvalues determine rho of degree La (before any fit)",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
         description="For a reference rho (the built-in blob, a random smooth rho, or the harmonic truth of a mesh "
         "target), the singular values of the relative Jacobian d(lambda_i)/lambda_i over the free coefficients "
         "(gauge a_1m = 0; the three rotations counted out) for several K: rank, condition number and noise gain "

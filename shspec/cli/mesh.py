@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InvalidArgumentError
-from ..io import ensure_directory
+from ..outputs import ensure_directory
 from ..mesh.cmcf import CMCFOptions, cmcf
 from ..mesh.cotan import MASS_KINDS
 from ..mesh.eigen import mesh_spectrum
-from ..mesh.io import load_mesh, save_mesh
+from ..mesh.mesh_files import load_mesh, save_mesh
 from ..mesh.plot import plot_hammer
 from ..parallel import make_executor
 from ..spectral.batch import run_batch

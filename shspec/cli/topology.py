@@ -6,11 +6,11 @@ import json
 
 from ..errors import InvalidArgumentError
 from ..mesh.eigen import mesh_spectrum
-from ..mesh.io import load_mesh
-from ..spectral.io import read_eigenvalues
+from ..mesh.mesh_files import load_mesh
+from ..spectral.spectrum_files import read_eigenvalues
 from ..spectral.topology import MIN_EIGENVALUES, estimate_topology
 
-#: Default K of mesh targets: enough for a ~10k-vertex mesh (benchmarks/bench_topology.py), at most n/5 so that
+#: Default K of mesh targets: enough for a ~10k-vertex mesh (measured: docs, benchmarks page), at most n/5 so that
 #: coarse meshes stay in the range where their cotan eigenvalues are accurate.
 DEFAULT_MESH_NUMEIG = 500
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from .._version import __version__
 from ..errors import InvalidArgumentError
-from ..io import ensure_directory, write_csv
+from ..outputs import ensure_directory, write_csv
 from ..report import experiment_markdown
 from ..resources import load_average
 

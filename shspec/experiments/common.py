@@ -27,14 +27,14 @@ def centred_random_factor(lmax_factor: int, amplitude: float, seed: int) -> Conf
     return rho
 
 
-#: Where the experiments look for the shared test meshes by default: the project's checkout sits beside ``shared``
-#: (a relative path, read from the working directory, as the README's commands are run from the checkout).
-MESH_DIR = "../shared/data/meshes"
+#: Where the experiments take their meshes by default: "", the meshes shipped with shspec
+#: (:data:`~shspec.mesh.builtin.BUILTIN_MESHES`); a config file may name a folder of ``<name>.obj`` files instead.
+MESH_DIR = ""
 
 
 def load_mesh_area_4pi(mesh_dir, name: str) -> TriangleMesh:
-    """``mesh_dir/name.obj`` scaled to area 4π, so that its mean conformal factor over a unit sphere is 1 (the
-    study's ``makeUnitArea(v, f)·sqrt(4π)``).
+    """``mesh_dir/name.obj`` (``mesh_dir`` empty: the shipped mesh ``name``) scaled to area 4π, so that its mean
+    conformal factor over a unit sphere is 1 (the study's ``makeUnitArea(v, f)·sqrt(4π)``).
 
     Raises
     ------
@@ -43,10 +43,13 @@ def load_mesh_area_4pi(mesh_dir, name: str) -> TriangleMesh:
     MeshError
         If the mesh is missing or invalid.
     """
-    if not Path(mesh_dir).is_dir():
-        raise InvalidArgumentError(f"mesh_dir {str(mesh_dir)!r} is not a directory (from {Path.cwd()}); run from "
-                                   f"the checkout beside 'shared', or set mesh_dir in a config file (--config)")
-    mesh = load_mesh(Path(mesh_dir) / f"{name}.obj")
+    if not mesh_dir:
+        mesh = load_mesh(name)
+    elif not Path(mesh_dir).is_dir():
+        raise InvalidArgumentError(f"mesh_dir {str(mesh_dir)!r} is not a directory (from {Path.cwd()}); leave it "
+                                   "unset for the meshes shipped with shspec")
+    else:
+        mesh = load_mesh(Path(mesh_dir) / f"{name}.obj")
     return mesh.with_vertices(mesh.vertices * np.sqrt(4 * np.pi / mesh.area()))
 
 

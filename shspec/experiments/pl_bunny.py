@@ -1,7 +1,7 @@
 """``pl-bunny``: the regularized PL inverse of the bunny (Section 3.2.2, Figure 1), the same for spot and blub, the
 recursive fit (Section 3.2.3, Figure 2), the exactly representable target and the adaptive fit from an icosphere.
 
-Each run ``"MESH:R"`` loads ``MESH.obj`` from ``mesh_dir``, scales it to area 4π (the mean factor is then 1), takes
+Each run ``"MESH:R"`` loads the mesh MESH (shipped, or ``MESH.obj`` from ``mesh_dir``), scales it to area 4π (the mean factor is then 1), takes
 its cotan spectrum (its first K = ``numeig_fraction``·n eigenvalues, target (a); the study's own runs used 95 % of
 them, "e0.95" in its figure names: K = 570 for 600 vertices, 1140 for 1200) and fits log factors s = log c on its
 own cMCF sphere with the study's penalty R ‖Ls‖²/2 (``reg_kind="cotan-squared"``, the form of ``eigencost.m``

@@ -2,7 +2,7 @@
 basis {Y_i : l_i ≤ Lb}, and its :class:`SpectrumResult`.
 
 How a spectrum is solved is in :mod:`shspec.galerkin.solver`'s notes; this model holds the table, the assembly and
-the derivatives, and answers what :class:`~shspec.model.SpectralModel` asks of a discretization.
+the derivatives, and answers what :class:`~shspec.spectral_model.SpectralModel` asks of a discretization.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from ..checks import check_float, check_int
 from ..errors import BandLimitError, InvalidArgumentError, NotPositiveError
 from ..gaunt.cache import get_table
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable, plan_bytes, table_size
-from ..model import SpectralModel, Spectrum, regularization_weight
+from ..spectral_model import SpectralModel, Spectrum, regularization_weight
 from ..resources import Need, check_need
 from ..sphere.factor import ConformalFactor
 from ..sphere.harmonics import check_degree, degree_order, degrees, ncoeffs
@@ -255,7 +255,7 @@ class HarmonicModel(SpectralModel):
             raise InvalidArgumentError(f"coef must have shape {spec.eigenvalues.shape}, got {coef.shape}")
         return -self.grid_forms.weighted(spec.eigenvectors, coef * spec.eigenvalues)
 
-    # -- what the inverse solver asks of a model (shspec.model.SpectralModel) -------------------------------------
+    # -- what the inverse solver asks of a model (shspec.spectral_model.SpectralModel) -------------------------------------
 
     def describe(self) -> str:
         return f"harmonic Lb={self.lmax} La={self.lmax_factor}"
@@ -269,8 +269,8 @@ class HarmonicModel(SpectralModel):
     def random_start(self, rng: np.random.Generator, amplitude: float, area: float, level: int | None = None,
                      ) -> np.ndarray:
         """a_00 from the area, a_1m = 0, degrees 2 … level random (odd ones included, so that the fit is not
-        trapped in the even subspace, NOTES.md) with RMS ∝ amplitude/l relative to the mean; the amplitude is halved
-        until the minimum of ρ is at least a quarter of its mean."""
+        trapped in the even subspace, :doc:`/theory`) with RMS ∝ amplitude/l relative to the mean; the amplitude is
+        halved until the minimum of ρ is at least a quarter of its mean."""
         la = self.lmax_factor if level is None else self.restrict(level).lmax_factor
         a00 = area / np.sqrt(4 * np.pi)
         noise = random_coefficients(rng, la, amplitude * a00)
@@ -348,7 +348,7 @@ class HarmonicModel(SpectralModel):
     def enter_level(self, params: np.ndarray, old: int | None, new: int | None, rng: np.random.Generator,
                     amplitude: float) -> np.ndarray:
         """The degrees old+1 … new get a small random perturbation of RMS ∝ amplitude/l relative to the mean: at an
-        even ρ the gradient along odd degrees is exactly 0 (the parity saddle, NOTES.md)."""
+        even ρ the gradient along odd degrees is exactly 0 (the parity saddle, :doc:`/theory`)."""
         old = self.lmax_factor if old is None else old
         new = self.lmax_factor if new is None else new
         if new <= old:

@@ -47,7 +47,7 @@ import numpy as np
 from .._version import __version__
 from ..atomic import atomic_hdf5, temporary_files
 from ..errors import BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError
-from ..io import ensure_directory
+from ..outputs import ensure_directory
 from ..resources import check_need
 from ..sphere.harmonics import degree_order
 from .build import build_table

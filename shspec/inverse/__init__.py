@@ -1,6 +1,6 @@
 """The inverse solver: recover ρ (or per-vertex factors) from a Laplace–Beltrami spectrum.
 
-It sees a discretization only through :class:`~shspec.model.SpectralModel`, and what it fits through a
+It sees a discretization only through :class:`~shspec.spectral_model.SpectralModel`, and what it fits through a
 :class:`~shspec.targets.Target` (built by :mod:`shspec.targets`, whose builders are re-exported here).  Pipeline: a :class:`Target`
 (spectrum, and the truth when known) → :func:`fit` with :class:`FitOptions` (optimizer, weights, regularizer,
 schedule of :class:`Stage` s, starts) over a :class:`~shspec.inverse.parametrization.Parametrization` of the

@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 
-from ..model import SpectralModel
+from ..spectral_model import SpectralModel
 from .hops import basin_hop, orient_new_block
 from .optimize import make_optimizer
 from .problem import FitProblem, StartProgress

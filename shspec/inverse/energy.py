@@ -3,7 +3,7 @@
 E(x) = ½ Σ_i w_i (λ_i(p(x)) − λ*_i)² + ½ ‖D u(x)‖²,
 
 with p(x) and u(x) the :class:`~shspec.inverse.parametrization.Parametrization`'s parameters and variables and D the
-model's regularizer (:meth:`~shspec.model.SpectralModel.regularizer`; for harmonic coefficients
+model's regularizer (:meth:`~shspec.spectral_model.SpectralModel.regularizer`; for harmonic coefficients
 ½‖Da‖² = R‖Δρ‖², on a mesh the cotan bi-Laplacian of c or of log c).  Written as a sum of squares of residuals
 r = [√w (λ − λ*); D u], Gauss–Newton and Levenberg–Marquardt use its Jacobian [√w ∂λ/∂x; D ∂u/∂x] directly.
 """
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidArgumentError
-from ..model import SpectralModel, Spectrum
+from ..spectral_model import SpectralModel, Spectrum
 from .parametrization import Parametrization
 
 __all__ = ["eigenvalue_weights", "relative_residual", "rms_relative_residual", "Evaluation", "Objective"]
@@ -171,7 +171,7 @@ class Objective:
 
     def values(self, x) -> Evaluation:
         """Energy and residuals alone at free values x (nfree,), from the model's eigenvalues without eigenvectors
-        (:meth:`~shspec.model.SpectralModel.eigenvalues`); ``gradient`` and ``jacobian`` are None."""
+        (:meth:`~shspec.spectral_model.SpectralModel.eigenvalues`); ``gradient`` and ``jacobian`` are None."""
         lam = self.model.eigenvalues(self.parametrization.params(x), self.target.size)
         self.evaluations += 1
         return self._finish(x, lam, None, None)

@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import NotPositiveError
-from ..model import SpectralModel
+from ..spectral_model import SpectralModel
 from .optimize import make_optimizer
 from .problem import FitProblem, StartProgress
 

@@ -2,7 +2,7 @@
 
 At parameters p with eigenvalues λ the relative Jacobian J_ij = (∂λ_i/∂p_j)/λ_i (i ≥ 1; λ₀ = 0 says nothing) over
 the free parameters tells what the spectrum sees to first order.  The continuous symmetries the spectrum cannot see
-(:meth:`~shspec.model.SpectralModel.symmetry_directions`: the rotations of a harmonic ρ) lie in its null space by
+(:meth:`~shspec.spectral_model.SpectralModel.symmetry_directions`: the rotations of a harmonic ρ) lie in its null space by
 construction; they are projected out first, so that the numbers below describe only what could be determined.
 With the singular values s₁ ≥ … of J on the remaining d directions:
 
@@ -32,7 +32,7 @@ import scipy.linalg
 
 from ..checks import check_float, check_int
 from ..errors import InvalidArgumentError, NotPositiveError
-from ..model import SpectralModel
+from ..spectral_model import SpectralModel
 from .parametrization import Parametrization
 
 __all__ = ["Identifiability", "identifiability", "identifiability_by_numeig", "determined_directions",
@@ -122,7 +122,7 @@ def identifiability(model: SpectralModel, params, numeig: int, *, fit_area: bool
     numeig : int
         K ≥ 2, λ₀ included.
     fit_area : bool
-        Whether the gauge frees the area (see :meth:`~shspec.model.SpectralModel.free_parameters`).
+        Whether the gauge frees the area (see :meth:`~shspec.spectral_model.SpectralModel.free_parameters`).
     residuals : (K,) array, optional
         Relative eigenvalue residuals (λ_i − λ*_i)/λ*_i of a fit (entry 0 ignored), for ``estimated_error``.
     rank_tol : float

@@ -1,7 +1,7 @@
 """The inverse solver's entry point: several symmetry-broken starts through a schedule, every local solution kept.
 
-A round start never leaves the even subspace (NOTES.md: at an even ρ the gradient along odd degrees is exactly 0),
-so every start is random, with odd degrees.  Starts run one after the other (each already uses the machine's
+A round start never leaves the even subspace (at an even ρ the gradient along odd degrees is exactly 0,
+:doc:`/theory`), so every start is random, with odd degrees.  Starts run one after the other (each already uses the machine's
 BLAS threads); each writes checkpoints if asked, and Ctrl-C ends the fit cleanly with the best state so far.
 """
 
@@ -16,7 +16,7 @@ import numpy as np
 
 from ..checks import check_options
 from ..errors import InvalidArgumentError
-from ..model import SpectralModel
+from ..spectral_model import SpectralModel
 from .checkpoint import fingerprint, load_checkpoint, save_checkpoint
 from .driver import run_start
 from .options import FitOptions
@@ -31,7 +31,7 @@ def distinct_solutions(starts: list, model: SpectralModel, tol: float) -> list:
     """Indices (into ``starts``) of the distinct local solutions, lowest energy first.
 
     Two starts are the same solution when their energies agree to ``tol`` relative (or both are below 1e-20) and
-    their invariants (:meth:`~shspec.model.SpectralModel.invariant`: per-degree power for harmonic fits, the
+    their invariants (:meth:`~shspec.spectral_model.SpectralModel.invariant`: per-degree power for harmonic fits, the
     factors for meshes) agree to ``tol`` relative.
     """
     if not starts:
@@ -87,7 +87,7 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     target : Target
         The target spectrum (k eigenvalues; stages may use fewer).
     model : SpectralModel
-        The discretization: its parameters, gauge, levels and regularizer (see :mod:`shspec.model`).
+        The discretization: its parameters, gauge, levels and regularizer (see :mod:`shspec.spectral_model`).
     options : FitOptions, optional
     resume : bool
         Continue from ``options.checkpoint_path`` if that file exists (it must be a checkpoint of the same fit).

@@ -30,7 +30,7 @@ class FitOptions:
     Attributes
     ----------
     optimizer : {"lm", "lbfgs", "bfgs", "gd"} or None
-        None (the default, also the command line's): the model's :attr:`~shspec.model.SpectralModel.default_optimizer`.
+        None (the default, also the command line's): the model's :attr:`~shspec.spectral_model.SpectralModel.default_optimizer`.
         Harmonic models use "lm" (Levenberg–Marquardt): it reached the same minimum as L-BFGS and BFGS in 4–5× less
         time and converges quadratically near a zero-residual solution; gradient descent had not converged after
         1000 iterations.  Mesh models use "lbfgs": at 600 vertices and 599 eigenvalues it reached LM's point in 11 s
@@ -49,7 +49,7 @@ class FitOptions:
         numeig ramp for meshes.
     stage_basis_tol : float or None
         Every stage but the last runs on the coarsest discretization of the model on which its eigenvalues agree
-        with the model's own to this relative tolerance (:meth:`~shspec.model.SpectralModel.stage_basis`; harmonic
+        with the model's own to this relative tolerance (:meth:`~shspec.spectral_model.SpectralModel.stage_basis`; harmonic
         models: a smaller basis degree, chosen once per fit at a reference ρ); the last stage and the basin hops use
         the model itself; a stage with :attr:`Stage.hops` gets the tolerance ``success_tol`` (if smaller), so that
         its hops can tell success.  None: every stage on the model's own.  The stages' optima are not the truth's
@@ -115,7 +115,7 @@ class FitOptions:
         the first four, 15 made 6 and 2, at a median 246 s per start either way.
     hop_grid : bool
         When no cheap move lowers the energy, try every degree block turned by the 23 rotations of the octahedral
-        group (and, for odd blocks, by the 24 improper ones): :meth:`~shspec.model.SpectralModel.escape_moves`
+        group (and, for odd blocks, by the 24 improper ones): :meth:`~shspec.spectral_model.SpectralModel.escape_moves`
         with ``newest=True`` at each level, 303 moves at degree 10.  In the degree-10 setting above it rescued one
         of the 3 starts whose cheap moves were exhausted with ``hop_tries`` 48, two of them when every grid move
         could be refitted (a probe; the failing one then spent 8 minutes in one hop).
@@ -128,7 +128,7 @@ class FitOptions:
         135 s per start (the failures 230–342 s), 48 made 10 of 16 at 106 s (the failures 105–154 s).
     orient_blocks : bool
         After each stage that first fits a new level (a new degree block), try the model's orientations of that
-        block relative to the ones fitted before (:meth:`~shspec.model.SpectralModel.escape_moves` with
+        block relative to the ones fitted before (:meth:`~shspec.spectral_model.SpectralModel.escape_moves` with
         ``newest=True``: an octahedral grid of rotations, and reflections of odd blocks), each with ``hop_iter``
         iterations, and go on from the best that lowers the energy.  Default off (see the benchmark).
     distinct_tol : float

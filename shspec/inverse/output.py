@@ -15,7 +15,7 @@ import json
 from pathlib import Path
 
 from ..errors import InvalidArgumentError, NotPositiveError
-from ..io import ensure_directory
+from ..outputs import ensure_directory
 from . import plots
 from .checkpoint import options_dict, save_result
 from .results import FitResult
@@ -63,7 +63,7 @@ def summary(result: FitResult) -> dict:
 
 def write_result(result: FitResult, directory, *, figures: bool = True) -> Path:
     """Write ``result.h5`` (:func:`~shspec.inverse.checkpoint.save_result`), ``summary.json``, the model's own files
-    (:meth:`~shspec.model.SpectralModel.write_files`: factors.txt and sphere.obj of a mesh fit) and, if ``figures``,
+    (:meth:`~shspec.spectral_model.SpectralModel.write_files`: factors.txt and sphere.obj of a mesh fit) and, if ``figures``,
     history.png, residuals.png, factors.png and the model's own figures into ``directory`` (created).
 
     Returns

@@ -5,7 +5,7 @@
 so the gauge (which parameters are free, the others fixed at ``base``) and the transform (p = exp(u) keeps
 positive parameters positive and lets them span decades) are one object, and the chain rule is applied here and
 nowhere else: ∂/∂x = (∂/∂p)[..., free] · f′(u[free]).  The regularizer acts on u (on a for harmonic coefficients,
-on s = log c for log factors), which the model's :meth:`~shspec.model.SpectralModel.regularizer` defines.
+on s = log c for log factors), which the model's :meth:`~shspec.spectral_model.SpectralModel.regularizer` defines.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidArgumentError, NotPositiveError
-from ..model import TRANSFORMS
+from ..spectral_model import TRANSFORMS
 
 __all__ = ["Parametrization"]
 

@@ -1,5 +1,5 @@
 """Figures of a fit: Hammer maps of target, fit and difference, the energy history and the eigenvalue residuals.
-Models add their own (:meth:`~shspec.model.SpectralModel.figures`; a mesh fit: per-vertex maps and the study's
+Models add their own (:meth:`~shspec.spectral_model.SpectralModel.figures`; a mesh fit: per-vertex maps and the study's
 validation of spectra).  Every function returns a matplotlib Figure; the caller saves or closes it (use a
 non-interactive backend such as Agg on servers)."""
 

@@ -1,7 +1,7 @@
 """One fit problem and where a start of it is.
 
 A :class:`FitProblem` holds a model, a target and the options, and builds the objective of each stage from what the
-model says of itself (:class:`~shspec.model.SpectralModel`): the level a stage restricts it to, the free parameters,
+model says of itself (:class:`~shspec.spectral_model.SpectralModel`): the level a stage restricts it to, the free parameters,
 the transform of the variables, the random start and the perturbation a stage adds when it raises the level.
 A :class:`StartProgress` is where one start is: enough to checkpoint it, to resume it, or to report it after Ctrl-C.
 Every random choice of start i is drawn from ``default_rng([seed, i])`` and, for the perturbation a stage adds to
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InvalidArgumentError
-from ..model import SpectralModel
+from ..spectral_model import SpectralModel
 from ..targets import Target
 from .energy import Objective, eigenvalue_weights
 from .options import FitOptions, fits_area

@@ -100,7 +100,7 @@ class FitResult:
 
     def factor(self):
         """The best solution as a harmonic :class:`~shspec.sphere.factor.ConformalFactor` (a mesh fit's factors
-        expanded in harmonics, :meth:`~shspec.model.SpectralModel.to_factor`)."""
+        expanded in harmonics, :meth:`~shspec.spectral_model.SpectralModel.to_factor`)."""
         return self.model.to_factor(self.best.params)
 
     def identifiability(self):

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..checks import check_int
 from ..errors import InvalidArgumentError
-from ..model import SpectralModel
+from ..spectral_model import SpectralModel
 
 __all__ = ["Stage", "parse_schedule", "numeig_ramp", "degree_ramp", "default_schedule", "default_hop_degree",
            "DEFAULT_STAGE_MAX_ITER", "DEFAULT_HOP_DEGREE"]
@@ -29,7 +29,7 @@ class Stage:
     lmax_factor : int or None
         Degree La of ρ fitted in this stage (harmonic fits only); None: the model's full La.  Coefficients of
         higher degree stay 0; the ones this stage adds receive a small seeded random perturbation, because at an
-        even ρ the gradient along odd degrees is exactly 0 (the parity saddle, NOTES.md).
+        even ρ the gradient along odd degrees is exactly 0 (the parity saddle, :doc:`/theory`).
     numeig : int or None
         Number of eigenvalues matched (λ₀ = 0 included); None: all of the target's.
     max_iter : int or None

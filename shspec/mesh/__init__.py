@@ -6,11 +6,12 @@ cotan spectrum, for the inverse solver); :func:`mesh_spectrum` gives any mesh's 
 """
 
 from .bridge import HarmonicFit, fit_harmonic
+from .builtin import BUILTIN_MESHES, builtin_mesh_path
 from .cmcf import CMCFOptions, CMCFResult, cmcf, roundness
 from .cotan import cotan_stiffness, mass_matrix, vertex_areas
 from .eigen import EigenOptions, eigenpairs, mesh_spectrum
 from .implicit import euler_characteristic, implicit_surface, ring_chain
-from .io import load_mesh, save_mesh
+from .mesh_files import load_mesh, save_mesh
 from .mobius import MeshCentering, center_mesh
 from .model import MeshModel
 from .plot import plot_hammer
@@ -19,7 +20,7 @@ from .triangle_mesh import TriangleMesh
 from .validate import validate_mesh
 
 __all__ = [
-    "TriangleMesh", "load_mesh", "save_mesh", "validate_mesh",
+    "TriangleMesh", "load_mesh", "save_mesh", "validate_mesh", "BUILTIN_MESHES", "builtin_mesh_path",
     "icosphere", "star_surface", "blob", "BLOB_COEFFICIENTS", "implicit_surface", "ring_chain",
     "euler_characteristic",
     "cotan_stiffness", "mass_matrix", "vertex_areas",

@@ -43,7 +43,7 @@ from scipy.sparse.linalg import splu
 
 from ..checks import check_int, check_options
 from ..errors import ConvergenceError, InvalidArgumentError, MeshError
-from ..model import Spectrum
+from ..spectral_model import Spectrum
 from .cotan import cotan_stiffness, mass_matrix
 from .triangle_mesh import TriangleMesh
 from .validate import ZERO_AREA_RTOL

@@ -1,7 +1,8 @@
-"""The mesh discretization behind the :class:`~shspec.model.SpectralModel` interface.
+"""The mesh discretization behind the :class:`~shspec.spectral_model.SpectralModel` interface.
 
 Parameters are per-vertex conformal factors c (n,), dimensionless: the metric is scaled by c_j near vertex j, so
-that the mass is M(c) = diag(c)·M_lumped while the cotan stiffness L, conformally invariant, stays fixed (NOTES.md).
+that the mass is M(c) = diag(c)·M_lumped while the cotan stiffness L, conformally invariant, stays fixed
+(:doc:`/theory`).
 With M-orthonormal eigenvectors, ∂λ_i/∂c_j = −λ_i v_i[j]² m_j, m = diag(M_lumped) the vertex areas.
 
 For a fit the optimizer's variables are c itself (``transform="identity"``) or s = log c (``transform="exp"``):
@@ -18,14 +19,14 @@ import scipy.sparse as sp
 
 from ..checks import check_options
 from ..errors import InvalidArgumentError, MeshError, NotPositiveError
-from ..model import TRANSFORMS, SpectralModel, Spectrum, regularization_weight
+from ..spectral_model import TRANSFORMS, SpectralModel, Spectrum, regularization_weight
 from ..sphere.evaluate import sample_harmonic
 from ..sphere.factor import ConformalFactor
 from ..sphere.random import random_coefficients
 from .bridge import fit_harmonic, mesh_band_limit
 from .cotan import cotan_stiffness, vertex_areas
 from .eigen import EigenOptions, eigenpairs
-from .io import save_mesh
+from .mesh_files import save_mesh
 from .refine import align_vertex_field
 from .figures import plot_spectra_validation, plot_vertex_factors
 from .triangle_mesh import TriangleMesh
@@ -242,7 +243,7 @@ class MeshModel(SpectralModel):
             self._bilaplacian = (self.stiffness.T @ sp.diags(1.0 / self.vertex_areas) @ self.stiffness).tocsr()
         return self._bilaplacian
 
-    # -- what the inverse solver asks of a model (shspec.model.SpectralModel) -------------------------------------
+    # -- what the inverse solver asks of a model (shspec.spectral_model.SpectralModel) -------------------------------------
 
     def describe(self) -> str:
         return (f"mesh n={self.nparams} area={np.round(self.vertex_areas.sum(), 12)}"

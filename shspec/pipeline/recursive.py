@@ -1,7 +1,8 @@
 """``recursive_fit``: the study's Section 3.2.3 — fit, re-embed, and fit again on the re-embedded mesh's own sphere.
 
 The PL inverse problem (per-vertex factors of a fixed mesh, :class:`~shspec.mesh.model.MeshModel`) works when its
-mesh is already adapted to the target (the target's own cMCF sphere, NOTES.md), which a real problem does not have.
+mesh is already adapted to the target (the target's own cMCF sphere, :doc:`/theory`), which a real problem does not
+have.
 The study's remedy: take the surface re-embedded from a first fit, compute its cMCF sphere — a sphere mesh refined
 where the first result has its features — and fit again there.  Each pass:
 

@@ -31,7 +31,7 @@ from ..embed.embed import EmbedOptions, EmbedResult, embed
 from ..errors import InvalidArgumentError, NotPositiveError, ShspecError
 from ..galerkin.model import HarmonicModel
 from ..inverse import FitOptions, align, fit, mesh_target
-from ..io import ensure_directory
+from ..outputs import ensure_directory
 from ..mesh.bridge import fit_harmonic, mesh_band_limit
 from ..mesh.cmcf import CMCFResult, cmcf
 from ..mesh.eigen import mesh_spectrum

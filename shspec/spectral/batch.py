@@ -21,13 +21,13 @@ from tqdm import tqdm
 
 from ..checks import check_int
 from ..errors import InvalidArgumentError
-from ..io import ensure_directory, write_csv
+from ..outputs import ensure_directory, write_csv
 from ..mesh.cotan import MASS_KINDS
 from ..mesh.eigen import mesh_spectrum
-from ..mesh.io import MESH_FORMATS, load_mesh
+from ..mesh.mesh_files import MESH_FORMATS, load_mesh
 from ..parallel import SerialExecutor
 from .descriptors import hks_times
-from .io import write_descriptors, write_values
+from .spectrum_files import write_descriptors, write_values
 from .topology import TopologyEstimate, estimate_topology
 
 __all__ = ["MeshJobResult", "mesh_job", "collect_meshes", "run_batch", "TABLE_NAME"]

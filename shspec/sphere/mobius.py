@@ -9,7 +9,7 @@ sphere, and φ_{−c} = φ_c⁻¹.  For a measure μ of mass 1 on the sphere, th
 C(c) = ∫ φ_c dμ, and ∂C/∂c at c = 0 is ∫ (−2I + 2xxᵀ) dμ (negative definite unless μ sits on two antipodal points).
 Newton's method on C(c) = 0, composing one translation per step, converges quadratically (Baden, Crane, Kazhdan,
 "Möbius Registration", SGP 2018).  Centering a ρ makes a_1m vanish, the gauge of the harmonic inverse problem
-(NOTES.md); the same Newton steps centre a mesh in :mod:`shspec.mesh.mobius`.
+(:doc:`/theory`); the same Newton steps centre a mesh in :mod:`shspec.mesh.mobius`.
 """
 
 from __future__ import annotations

@@ -2,8 +2,8 @@
 
 Per coefficient the standard deviation is σ_l = rms / (√(2l+1) · l), so the 2l+1 coefficients of degree l together
 have an expected power rms²/l²: smooth (the power falls like 1/l²) yet with every degree present.  Degree 1 is left
-out (a_1m = 0 is the Möbius-centred gauge, NOTES.md), and so is everything below ``low``.  Fits draw their starts,
-targets and experiments their random truths from here.
+out (a_1m = 0 is the Möbius-centred gauge, :doc:`/theory`), and so is everything below ``low``.  Fits draw their
+starts, targets and experiments their random truths from here.
 """
 
 from __future__ import annotations

@@ -1,0 +1,120 @@
+"""Reading and writing triangle meshes (OBJ, PLY, OFF, STL) through trimesh."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from ..errors import InvalidArgumentError, MeshError
+from .builtin import BUILTIN_MESHES, resolve_mesh_path
+from .triangle_mesh import TriangleMesh
+from .validate import validate_mesh
+
+__all__ = ["load_mesh", "save_mesh", "MESH_FORMATS"]
+
+#: File suffixes accepted by :func:`load_mesh` and :func:`save_mesh`.
+MESH_FORMATS = (".obj", ".ply", ".off", ".stl")
+
+
+def _check_suffix(path: Path) -> None:
+    if path.suffix.lower() not in MESH_FORMATS:
+        raise InvalidArgumentError(f"{path}: unsupported mesh format {path.suffix!r}; use one of {MESH_FORMATS}")
+
+
+def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None,
+              require_genus0: bool = True) -> TriangleMesh:
+    """Read a triangle mesh, keeping the stored vertex order.
+
+    Parameters
+    ----------
+    path : str or Path
+        An ``.obj``, ``.ply``, ``.off`` or ``.stl`` file, or the name of a mesh shipped with shspec
+        (:data:`~shspec.mesh.builtin.BUILTIN_MESHES`: ``"bunny_600"``, ``"spot"``, ...).
+    validate : bool, default True
+        Run :func:`~shspec.mesh.validate.validate_mesh` (closed, manifold, oriented, one component, genus 0).
+    merge_vertices : bool or None
+        Merge vertices at identical positions (weld a "vertex soup" whose faces do not share vertices).  None
+        (default): only for STL, which cannot share vertices.  When validation fails and the file has duplicate
+        positions, the error says so and suggests this option.
+    require_genus0 : bool, default True
+        With ``validate``, also require genus 0; False accepts closed manifold meshes of any genus (for spectra and
+        their heat-trace invariants; cMCF and the fits need genus 0).
+
+    Returns
+    -------
+    TriangleMesh
+        n vertices (n, 3) and m faces (m, 3).
+
+    Raises
+    ------
+    InvalidArgumentError
+        If the suffix is not a supported format.
+    MeshError
+        If the file is missing, unreadable, holds no triangles, or fails validation.
+
+    Notes
+    -----
+    trimesh is called with ``process=False`` so that vertices are neither merged nor reordered.  STL stores
+    triangles without shared vertices, so for STL coincident vertices are merged (trimesh's ``process=True``);
+    otherwise every STL file would load as a soup of disconnected triangles.
+    """
+    path = resolve_mesh_path(path)
+    if not path.suffix:
+        raise InvalidArgumentError(f"{path}: neither a mesh file ({', '.join(MESH_FORMATS)}) nor a mesh shipped with "
+                                   f"shspec ({', '.join(BUILTIN_MESHES)})")
+    _check_suffix(path)
+    if not path.is_file():
+        raise MeshError(f"{path}: no such file")
+    process = path.suffix.lower() == ".stl" if merge_vertices is None else bool(merge_vertices)
+    try:
+        loaded = trimesh.load(path, process=process, force="mesh")
+    except Exception as exc:  # trimesh raises many unrelated types on malformed input
+        raise MeshError(f"{path}: cannot read mesh: {exc}") from exc
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise MeshError(f"{path}: holds no triangles")
+    mesh = TriangleMesh(np.asarray(loaded.vertices), np.asarray(loaded.faces))
+    if not validate:
+        return mesh
+    try:
+        return validate_mesh(mesh, genus0=require_genus0)
+    except MeshError as exc:
+        duplicates = mesh.nvertices - np.unique(mesh.vertices, axis=0).shape[0]
+        if duplicates and not process:
+            raise MeshError(f"{path}: {exc}; {duplicates} of its {mesh.nvertices} vertices repeat the position of "
+                            "another (faces that do not share their vertices?): weld them with --merge-vertices "
+                            "(merge_vertices=True)") from None
+        raise
+
+
+def save_mesh(mesh: TriangleMesh, path) -> Path:
+    """Write ``mesh`` to ``path``; the format follows the suffix (``.obj``, ``.ply``, ``.off``, ``.stl``).
+
+    Returns
+    -------
+    Path
+        The path written.
+
+    Raises
+    ------
+    InvalidArgumentError
+        If ``mesh`` is not a TriangleMesh or the suffix is unsupported.
+    MeshError
+        If the file cannot be written.
+    """
+    if not isinstance(mesh, TriangleMesh):
+        raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
+    path = Path(path)
+    _check_suffix(path)
+    tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    try:
+        # OBJ: positions and faces only, at full double precision, so that a round trip is exact.
+        if path.suffix.lower() == ".obj":
+            path.write_text(trimesh.exchange.obj.export_obj(tm, include_normals=False, include_color=False,
+                                                            include_texture=False, digits=17))
+        else:
+            tm.export(path)
+    except OSError as exc:
+        raise MeshError(f"{path}: cannot write mesh: {exc}") from exc
+    return path

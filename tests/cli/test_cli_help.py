@@ -1,0 +1,57 @@
+"""The command line's own surface: --version, defaults in the help, the embed summary file."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import shspec
+from shspec.cli import build_parser, main
+from shspec.embed.options import EmbedOptions
+from shspec.mesh.cmcf import CMCFOptions
+from shspec.mesh.mesh_files import save_mesh
+from shspec.mesh.shapes import icosphere
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out.strip() == f"shspec {shspec.__version__}"
+
+
+def _help(*command):
+    sub = build_parser()._subparsers._group_actions[0].choices
+    return " ".join(sub[command[0]].format_help().split())
+
+
+@pytest.mark.parametrize("command, expected", [
+    ("cmcf", [f"roundness tolerance (default {CMCFOptions.tol:g})", f"(default {CMCFOptions.max_iter})"]),
+    ("embed", [f"(default {EmbedOptions.pressure:g})", f"filter (default {EmbedOptions.smoothing:g})"]),
+    ("report", ["(default report.html)"]),
+    ("precompute", ["(default build)", "(default 2000)"]),
+])
+def test_help_states_defaults(command, expected):
+    text = _help(command)
+    for phrase in expected:
+        assert phrase in text
+    assert "(default: None)" not in text
+
+
+def test_embed_writes_its_summary_with_the_inputs(tmp_path, capsys):
+    sphere = icosphere(2)
+    save_mesh(sphere, tmp_path / "s.obj")
+    np.savetxt(tmp_path / "c.txt", np.full(sphere.nvertices, 4.0))
+    code = main(["embed", str(tmp_path / "s.obj"), str(tmp_path / "c.txt"), "--out", str(tmp_path / "e.obj"),
+                 "--summary", str(tmp_path / "e.json")])
+    assert code == 0
+    summary = json.loads((tmp_path / "e.json").read_text())
+    assert summary["factors"] == str(tmp_path / "c.txt") and summary["pressure"] == EmbedOptions.pressure
+    assert summary["success"] is True and "factorizations" in summary
+
+
+def test_precompute_runs_as_a_subcommand_of_the_installed_entry_point(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "shspec", "precompute", "list", "--cache-dir", str(tmp_path)],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and "(--cache-dir;" in out.stdout
