@@ -36,7 +36,7 @@ import pyshtools
 import scipy.linalg
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import REPO, load_average, machine_info, side_by_side, summarize, threads, timed, write_json  # noqa: E402
+from common import REPO, command_line, load_average, machine_info, side_by_side, summarize, threads, timed, write_json  # noqa: E402
 
 from shspec.sphere.factor import ConformalFactor  # noqa: E402
 from shspec.galerkin.model import HarmonicModel, _schur_scaled_upper  # noqa: E402
@@ -286,6 +286,7 @@ def plot(acc):
 
 
 def main():
+    command_line(__doc__)
     out = {"benchmark": "bench_forward", "machine": machine_info(), "goals": GOALS, "cases": []}
     print(out["machine"]["cpu"], "load", out["machine"]["load_average_1_5_15"], flush=True)
     build_table(6, 4)

@@ -31,7 +31,7 @@ import numpy as np
 import scipy.linalg
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import load_average, machine_info, side_by_side, threads, write_json  # noqa: E402
+from common import command_line, load_average, machine_info, side_by_side, threads, write_json  # noqa: E402
 
 import shspec  # noqa: E402
 from shspec.galerkin.model import HarmonicModel, _schur_scaled_upper  # noqa: E402
@@ -244,6 +244,7 @@ def lm_run(lb=30, la=15, k=256, perturbation=1e-4, iterations=40):
 
 
 def main():
+    command_line(__doc__)
     out = {"benchmark": "bench_iteration", "machine": machine_info(), "goals": GOALS, "threads": 1, "cases": []}
     print(out["machine"]["cpu"], "load", out["machine"]["load_average_1_5_15"], flush=True)
     for lb, la, k, repeats in CASES:

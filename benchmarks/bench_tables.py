@@ -36,7 +36,7 @@ import pyshtools
 from pyshtools import _SHTOOLS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import load_average, machine_info, peak_memory, side_by_side, summarize, threads, timed, write_json  # noqa: E402
+from common import command_line, load_average, machine_info, peak_memory, side_by_side, summarize, threads, timed, write_json  # noqa: E402
 
 from shspec import real_gaunt  # noqa: E402
 from shspec.gaunt.cache import save_table  # noqa: E402
@@ -285,6 +285,7 @@ def sympy_case(lmax=4) -> dict:
 
 
 def main():
+    command_line(__doc__)
     out = {"benchmark": "bench_tables", "machine": machine_info(), "goals": GOALS, "cases": []}
     print(out["machine"]["cpu"], "load", out["machine"]["load_average_1_5_15"], flush=True)
 

@@ -227,6 +227,14 @@ def write_json(name: str, data: dict) -> Path:
     return path
 
 
+def command_line(doc: str):
+    """The command line of a benchmark without options: ``--help`` says what it measures; returns the parsed
+    arguments."""
+    import argparse
+
+    return argparse.ArgumentParser(description=doc.splitlines()[0]).parse_args()
+
+
 def main_with_only(doc: str, name: str, run) -> None:
     """The command line of a benchmark of named cases: ``--only TEXT`` runs the cases whose name contains TEXT;
     ``run(only)`` returns the JSON written to ``results/name``."""

@@ -27,7 +27,7 @@ import platform
 import time
 from pathlib import Path
 
-from common import cpu_model
+from common import command_line, cpu_model
 
 import numba as nb
 import numpy as np
@@ -240,6 +240,7 @@ def run_band(rng, a, b, n_fam, cap):
 
 
 def main():
+    command_line(__doc__)
     wx.wig_table_init(2 * 2000 + 8, 3)
     wx.wig_temp_init(2 * 2000 + 8)
     rng = np.random.default_rng(SEED)

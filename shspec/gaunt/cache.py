@@ -2,17 +2,19 @@
 
 Schema (format version 1), one file ``gaunt_Lb{Lb}_La{La}.h5`` per table:
 
-================  =========================================================================================
-``/values``       float64 dataset, the stored families in the layout of :mod:`shspec.gaunt.table`
-attr ``format``   ``"shspec-gaunt"``
-attr ``format_version``  int, 1
-attr ``lmax``     int, basis band limit Lb
-attr ``lmax_factor``  int, factor band limit La
-attr ``convention``   :data:`CONVENTION`: real orthonormal harmonics as pyshtools (ortho, csphase=1), flat index
-attr ``count``    int, number of values (must equal the layout's size for (Lb, La))
-attr ``checksum`` ``"blake2b:<hex>"`` of the raw little-endian bytes of ``/values``
-attr ``shspec_version``, ``created`` (ISO 8601, UTC), ``build_seconds``
-================  =========================================================================================
+=============================  ==========================================================================
+``/values``                    float64 dataset, the stored families in the layout of :mod:`shspec.gaunt.table`
+attr ``format``                ``"shspec-gaunt"``
+attr ``format_version``        int, 1
+attr ``lmax``                  int, basis band limit Lb
+attr ``lmax_factor``           int, factor band limit La
+attr ``convention``            :data:`CONVENTION`: real orthonormal harmonics as pyshtools (ortho, csphase=1)
+attr ``count``                 int, number of values (must equal the layout's size for (Lb, La))
+attr ``checksum``              ``"blake2b:<hex>"`` of the raw little-endian bytes of ``/values``
+attr ``shspec_version``        the version that wrote it
+attr ``created``               ISO 8601, UTC
+attr ``build_seconds``         time the build took
+=============================  ==========================================================================
 
 The cache directory is, in order: the ``cache_dir`` argument, the ``SHSPEC_CACHE`` environment variable, the
 ``cache/`` folder of the shspec checkout the current directory lies in (found as git finds its repository: the

@@ -227,8 +227,10 @@ def wigner3j_family(j2: int, j3: int, m2: int, m3: int) -> tuple[int, np.ndarray
 
     Parameters
     ----------
-    j2, j3 : int, >= 0
-    m2, m3 : int, |m2| <= j2, |m3| <= j3
+    j2, j3 : int
+        Degrees, >= 0.
+    m2, m3 : int
+        Orders, with |m2| <= j2 and |m3| <= j3.
 
     Returns
     -------

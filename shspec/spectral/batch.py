@@ -24,6 +24,7 @@ from ..errors import InvalidArgumentError
 from ..outputs import ensure_directory, write_csv
 from ..mesh.cotan import MASS_KINDS
 from ..mesh.eigen import mesh_spectrum
+from ..mesh.builtin import resolve_mesh_path
 from ..mesh.mesh_files import MESH_FORMATS, load_mesh
 from ..parallel import SerialExecutor
 from .descriptors import hks_times
@@ -97,7 +98,8 @@ def mesh_job(path, numeig: int, mass: str = "lumped", *, descriptors: bool = Fal
 
 
 def collect_meshes(items) -> list[Path]:
-    """Mesh files from files and folders (a folder gives its files with a mesh suffix, sorted by name).
+    """Mesh files from files, folders (a folder gives its files with a mesh suffix, sorted by name) and the names of
+    meshes shipped with shspec (``bunny_600``).
 
     Raises
     ------
@@ -107,7 +109,7 @@ def collect_meshes(items) -> list[Path]:
     """
     paths = []
     for item in items:
-        item = Path(item)
+        item = resolve_mesh_path(item)
         if item.is_dir():
             found = sorted(p for p in item.iterdir() if p.is_file() and p.suffix.lower() in MESH_FORMATS)
             if not found:

@@ -1,4 +1,5 @@
-"""Every snippet of the README runs: python blocks are executed, shell blocks are run line by line.
+"""Every snippet of the README and of the documentation's pages runs: python blocks are executed, shell blocks are
+run line by line (blocks marked ``text`` are shown, not run).
 
 ``pip install`` steps of shell lines are skipped (the test environment is the installed project, which CI builds
 from the same command); everything after them runs for real, in a scratch folder that holds a copy of the
@@ -18,7 +19,14 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-BLOCKS = re.findall(r"```(\w+)\n(.*?)```", README.read_text(), flags=re.S)
+#: The pages whose snippets run: the README and the documentation's own pages (not the experiments' reports).
+PAGES = [README, *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "docs" / "guide").glob("*.md"))]
+BLOCKS = [(page.relative_to(ROOT).as_posix(), lang, code) for page in PAGES
+          for lang, code in re.findall(r"```(\w+)\n(.*?)```", page.read_text(), flags=re.S)]
+
+
+def _ids(lang):
+    return [(f"{page}:{i}", code) for i, (page, kind, code) in enumerate(BLOCKS) if kind == lang]
 
 
 @pytest.fixture
@@ -44,10 +52,9 @@ def test_quickstart_has_exactly_two_commands():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("index", [i for i, (lang, _) in enumerate(BLOCKS) if lang == "python"])
-def test_python_snippet(index, workdir):
-    code = BLOCKS[index][1]
-    exec(compile(code, f"README.md python block {index}", "exec"), {"__name__": "__readme__"})
+@pytest.mark.parametrize("name, code", _ids("python"), ids=[name for name, _ in _ids("python")])
+def test_python_snippet(name, code, workdir):
+    exec(compile(code, f"{name} (python block)", "exec"), {"__name__": "__snippet__"})
 
 
 def _commands(body):
@@ -65,12 +72,12 @@ def _commands(body):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("index", [i for i, (lang, _) in enumerate(BLOCKS) if lang == "bash"])
-def test_shell_snippet(index, workdir):
+@pytest.mark.parametrize("name, code", _ids("bash"), ids=[name for name, _ in _ids("bash")])
+def test_shell_snippet(name, code, workdir):
     env = dict(os.environ, MPLBACKEND="Agg")
     bindir = Path(sys.executable).parent
     env["PATH"] = f"{bindir}{os.pathsep}{env.get('PATH', '')}"
-    for command in _commands(BLOCKS[index][1]):
+    for command in _commands(code):
         argv = shlex.split(command)
         if argv[0] == "python":
             argv[0] = sys.executable
