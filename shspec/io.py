@@ -6,6 +6,7 @@ import csv
 import os
 from pathlib import Path
 
+from .atomic import atomic_output
 from .errors import OutputError
 
 __all__ = ["ensure_directory", "write_csv"]
@@ -50,11 +51,8 @@ def write_csv(path: str | os.PathLike, rows: list[dict], fields: list[str] | Non
     path = Path(path)
     if not rows:
         raise OutputError(f"no rows to write to {path}")
-    try:
-        with open(path, "w", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=list(rows[0]) if fields is None else fields, restval="")
-            writer.writeheader()
-            writer.writerows(rows)
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc}") from exc
+    with atomic_output(path) as tmp, open(tmp, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(rows[0]) if fields is None else fields, restval="")
+        writer.writeheader()
+        writer.writerows(rows)
     return path

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_path
+from ..atomic import atomic_output
 from ..embed.embed import EmbedOptions, embed
 from ..errors import InvalidArgumentError, OutputError
 from ..pipeline.validation import ValidationOptions, validate_target, write_report
@@ -66,7 +66,7 @@ def _embed(args) -> int:
                "iterations": res.iterations, "factorizations": res.factorizations, "success": res.success,
                "seconds": res.seconds, "cpu_seconds": res.cpu_seconds}
     if args.summary is not None:
-        with atomic_path(args.summary) as tmp:
+        with atomic_output(args.summary) as tmp:
             tmp.write_text(json.dumps(summary, indent=1) + "\n")
     print(json.dumps(summary))
     return 0 if res.success else 1

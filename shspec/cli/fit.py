@@ -14,9 +14,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from ..atomic import write_text
 from ..errors import InvalidArgumentError, OutputError
 from ..galerkin import HarmonicModel
 from ..galerkin.planning import plan_numeig
+from ..inverse.checkpoint import claim_checkpoint
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions, parse_schedule
 from ..inverse.schedule import DEFAULT_STAGE_MAX_ITER, default_hop_degree, degree_ramp, numeig_ramp
@@ -194,7 +196,10 @@ def register(subparsers) -> None:
                    help="run the starts on a running Dask distributed cluster, e.g. tcp://host:8786")
     p.add_argument("--checkpoint-every", type=int, default=d.checkpoint_every, metavar="N",
                    help="write DIR/checkpoint.h5 every N iterations (0: never)")
-    p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.h5")
+    p.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.h5 (which must exist)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="discard DIR/checkpoint.h5 of an earlier fit (without it, a fit into a folder holding a "
+                   "checkpoint is refused)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     p.add_argument("--allow-any-genus", action="store_true",
@@ -298,6 +303,7 @@ def _fit(args) -> int:
     out: Path = args.out
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out} is a file; give a directory")
+    claim_checkpoint(out / "checkpoint.h5", resume=args.resume, overwrite=args.overwrite)
     auto = args.numeig == "auto"
     if args.numeig in ("auto", "all") and args.target.partition(":")[0] not in ("star", "mesh"):
         raise InvalidArgumentError(f"--numeig {args.numeig} needs a mesh target (star:... or mesh:...)")
@@ -354,7 +360,7 @@ def _fit(args) -> int:
     result.write(out)
     if extra:
         path = out / "summary.json"
-        path.write_text(json.dumps({**json.loads(path.read_text()), **extra}, indent=2) + "\n")
+        write_text(path, json.dumps({**json.loads(path.read_text()), **extra}, indent=2) + "\n")
     ident = result.identifiability()
     print(("warning: " if ident.underdetermined else "") + ident.statement(), file=sys.stderr)
     best = result.best

@@ -11,10 +11,11 @@ import time
 import warnings
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 from .._version import __version__
-from ..atomic import atomic_hdf5, atomic_path
+from ..atomic import atomic_output, save_figure, write_text
 from ..errors import BandLimitError, InvalidArgumentError, TruncationWarning
 from ..galerkin.convergence import convergence, convergence_in_factor, pl_spectrum_of_factor
 from ..galerkin.solver import MAX_BASIS_DEGREE, spectrum
@@ -158,10 +159,10 @@ def run_forward(args) -> int:
 def _save(path: Path, record: dict, vectors: np.ndarray) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".json":
-        with atomic_path(path) as tmp:
+        with atomic_output(path) as tmp:
             tmp.write_text(json.dumps(record, indent=1))
     elif path.suffix.lower() in (".h5", ".hdf5"):
-        with atomic_hdf5(path) as f:
+        with atomic_output(path, hdf5=True) as tmp, h5py.File(tmp, "w") as f:
             f["eigenvalues"] = np.asarray(record["eigenvalues"])
             f["eigenvectors"] = vectors
             f["rho_coefficients"] = np.asarray(record["rho_coefficients"])
@@ -205,12 +206,14 @@ def run_convergence(args) -> int:
         study.plot_spectra(axes[1])
         axes[0].set_title(f"{rho.name}: convergence in {study.parameter}")
         fig.tight_layout()
-        fig.savefig(out / f"convergence_{study.parameter}.png", dpi=120)
-        plt.close(fig)
+        try:
+            save_figure(fig, out / f"convergence_{study.parameter}.png", dpi=120)
+        finally:
+            plt.close(fig)
         finite = rates[~np.isnan(rates)]
         print(f"{study.parameter}: values {study.values.tolist()}; largest change at the coarsest "
               f"{rows[0]['max_relative_change']:.2e}, next-to-finest {rows[-2]['max_relative_change']:.2e}; "
               f"median exponential rate {np.median(finite) if finite.size else float('nan'):.3f} per degree")
-    (out / "convergence.json").write_text(json.dumps(summary, indent=1))
+    write_text(out / "convergence.json", json.dumps(summary, indent=1))
     print(f"wrote {out}/convergence.json, CSV and PNG files")
     return 0

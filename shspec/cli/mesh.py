@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_output, save_figure, write_text
 from ..errors import InvalidArgumentError
 from ..io import ensure_directory
 from ..mesh.cmcf import CMCFOptions, cmcf
@@ -89,8 +90,9 @@ def _cmcf(args) -> int:
     result = cmcf(mesh, CMCFOptions(tol=args.tol, max_iter=args.max_iter, center=not args.no_center))
     out = ensure_directory(args.out)
     save_mesh(result.sphere, out / "sphere.obj")
-    np.savetxt(out / "factors.txt", result.factors, fmt="%.17g",
-               header="conformal factor per vertex: input vertex area / sphere vertex area")
+    with atomic_output(out / "factors.txt") as tmp:
+        np.savetxt(tmp, result.factors, fmt="%.17g",
+                   header="conformal factor per vertex: input vertex area / sphere vertex area")
     summary = {
         "input": str(args.path), "tol": args.tol, "max_iter": args.max_iter, "center": not args.no_center,
         "nvertices": mesh.nvertices, "roundness": result.roundness,
@@ -99,10 +101,12 @@ def _cmcf(args) -> int:
         "centering_residual": None if np.isnan(result.centering_residual) else result.centering_residual,
         "success": result.success,
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     fig = plot_hammer(result.sphere, result.factors, log=True, title=f"{args.path.name}: conformal factors",
                       label="factor (log scale)")
-    fig.savefig(out / "factors.png", dpi=120, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        save_figure(fig, out / "factors.png", dpi=120, bbox_inches="tight")
+    finally:
+        plt.close(fig)
     print(json.dumps(summary))
     return 0 if result.success else 1

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from ..atomic import atomic_output
 from ..errors import InvalidArgumentError, MeshError
 from .triangle_mesh import TriangleMesh
 from .validate import validate_mesh
@@ -103,13 +104,11 @@ def save_mesh(mesh: TriangleMesh, path) -> Path:
     path = Path(path)
     _check_suffix(path)
     tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
-    try:
+    with atomic_output(path) as tmp:
         # OBJ: positions and faces only, at full double precision, so that a round trip is exact.
         if path.suffix.lower() == ".obj":
-            path.write_text(trimesh.exchange.obj.export_obj(tm, include_normals=False, include_color=False,
-                                                            include_texture=False, digits=17))
+            tmp.write_text(trimesh.exchange.obj.export_obj(tm, include_normals=False, include_color=False,
+                                                           include_texture=False, digits=17))
         else:
-            tm.export(path)
-    except OSError as exc:
-        raise MeshError(f"{path}: cannot write mesh: {exc}") from exc
+            tm.export(tmp, file_type=path.suffix.lower().lstrip("."))
     return path

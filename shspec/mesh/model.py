@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from ..atomic import atomic_output
 from ..checks import check_options
 from ..errors import InvalidArgumentError, MeshError, NotPositiveError
 from ..model import TRANSFORMS, SpectralModel, Spectrum, regularization_weight
@@ -329,8 +330,9 @@ class MeshModel(SpectralModel):
         ``--init`` file) and the model's sphere mesh (sphere.obj) into ``directory``; returns the file names."""
         c = self._factors(params)
         directory = Path(directory)
-        np.savetxt(directory / "factors.txt", c, fmt="%.17g",
-                   header=f"per-vertex conformal factors c of {self.describe()}, vertex order of sphere.obj")
+        with atomic_output(directory / "factors.txt") as tmp:
+            np.savetxt(tmp, c, fmt="%.17g",
+                       header=f"per-vertex conformal factors c of {self.describe()}, vertex order of sphere.obj")
         save_mesh(self.mesh, directory / "sphere.obj")
         return ["factors.txt", "sphere.obj"]
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from ..atomic import write_text
 from ..checks import check_int
 from ..errors import InvalidArgumentError
 from ..io import ensure_directory, write_csv
@@ -140,7 +141,7 @@ def _write(out: Path, res: MeshJobResult, descriptors: bool) -> None:
                      f"first {res.eigenvalues.size} cotan Laplace-Beltrami eigenvalues of {res.path}, ascending, "
                      f"1/area; area {res.area:.17g}")
     if res.topology is not None:
-        (out / f"{res.name}.topology.json").write_text(json.dumps(res.topology.to_dict(), indent=1) + "\n")
+        write_text(out / f"{res.name}.topology.json", json.dumps(res.topology.to_dict(), indent=1) + "\n")
 
 
 def _row(res: MeshJobResult) -> dict:

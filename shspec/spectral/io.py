@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import CheckpointError, InvalidArgumentError
+from ..atomic import atomic_output
+from ..errors import InvalidArgumentError
 from ..targets import read_spectrum
 from .descriptors import heat_kernel_signature, hks_times, shape_dna
 from .heat import heat_trace
@@ -60,10 +61,8 @@ def read_eigenvalues(path) -> np.ndarray:
 def write_values(path, values, header: str) -> Path:
     """Write (k,) values one per line at full precision under '#' ``header`` lines; returns the path."""
     path = Path(path)
-    try:
-        np.savetxt(path, np.asarray(values, dtype=float).reshape(-1), fmt="%.17g", header=header)
-    except OSError as exc:
-        raise CheckpointError(f"cannot write {path}: {exc}") from exc
+    with atomic_output(path) as tmp:
+        np.savetxt(tmp, np.asarray(values, dtype=float).reshape(-1), fmt="%.17g", header=header)
     return path
 
 
@@ -110,19 +109,15 @@ def write_descriptors(directory, stem: str, eigenvalues, area: float, *, eigenve
     }
     trace = np.stack([t, heat_trace(eigenvalues, t)], axis=1)
     path = directory / f"{stem}{DESCRIPTOR_SUFFIXES['heat_trace']}"
-    try:
-        np.savetxt(path, trace, fmt="%.17g", header=f"heat trace{origin} of the first {k} eigenvalues (no tail): "
+    with atomic_output(path) as tmp:
+        np.savetxt(tmp, trace, fmt="%.17g", header=f"heat trace{origin} of the first {k} eigenvalues (no tail): "
                    "t [area units], Z(t) = sum exp(-lambda t)")
-    except OSError as exc:
-        raise CheckpointError(f"cannot write {path}: {exc}") from exc
     paths["heat_trace"] = path
     if eigenvectors is not None:
         hks = heat_kernel_signature(eigenvalues, eigenvectors, t)
         path = directory / f"{stem}{DESCRIPTOR_SUFFIXES['hks']}"
-        try:
-            np.savetxt(path, hks, fmt="%.10g", header=f"heat kernel signature{origin}: one row per vertex, one "
+        with atomic_output(path) as tmp:
+            np.savetxt(tmp, hks, fmt="%.10g", header=f"heat kernel signature{origin}: one row per vertex, one "
                        f"column per time t [1/area]; times: {' '.join(f'{x:.10g}' for x in t)}")
-        except OSError as exc:
-            raise CheckpointError(f"cannot write {path}: {exc}") from exc
         paths["hks"] = path
     return paths
