@@ -98,8 +98,8 @@ def register(subparsers) -> None:
         "summary.json and PNG figures to DIR. A start succeeds when its largest relative eigenvalue residual "
         f"max_i |lambda_i - lambda*_i| / lambda*_i is at most {d.success_tol:g}.")
     p.add_argument("--target", required=True,
-                   help="blob | star:l,m,p | mesh:PATH | spectrum:FILE (text with one eigenvalue per line, or the "
-                   "last column of 'shspec mesh-spectrum' output; .npy; .json)")
+                   help="blob | star:l,m,p | mesh:PATH | spectrum:FILE (text or CSV, .npy, .json: the formats of "
+                   "shspec.spectrum_file, 'shspec mesh-spectrum' output included)")
     p.add_argument("--lmax", type=int, default=None,
                    help="basis band limit Lb (default: with --numeig, 30; without, the planned Lb: the smallest at "
                    "which the reference's first K eigenvalues change by at most 1e-6 from Lb - 2)")

@@ -17,6 +17,7 @@ from ..mesh.io import load_mesh, save_mesh
 from ..mesh.plot import plot_hammer
 from ..parallel import make_executor
 from ..spectral.batch import run_batch
+from ..spectrum_file import SPECTRUM_SUFFIXES, write_spectrum
 
 
 def register(subparsers) -> None:
@@ -33,7 +34,8 @@ def register(subparsers) -> None:
     p.add_argument("--numeig", type=int, default=20, metavar="K", help="number of eigenvalues (default 20)")
     p.add_argument("--mass", choices=MASS_KINDS, default="lumped", help="mass matrix (default lumped)")
     p.add_argument("--json", action="store_true", help="print one JSON object with key 'eigenvalues' (one mesh)")
-    p.add_argument("--out", type=Path, metavar="DIR", help="write files per mesh and spectra.csv to DIR (created)")
+    p.add_argument("--out", type=Path, metavar="DIR", help="write files per mesh and spectra.csv to DIR (created); "
+                   "for a single mesh, a file path ending in .txt, .csv, .json or .npy writes its spectrum there")
     p.add_argument("--descriptors", action="store_true", help="with --out: also NAME.shapedna.txt (eigenvalue * "
                    "area), NAME.heat_trace.txt (t, Z(t)) and NAME.hks.txt (heat kernel signature per vertex)")
     p.add_argument("--topology", action="store_true", help="with --out: also NAME.topology.json (Euler "
@@ -60,6 +62,18 @@ def register(subparsers) -> None:
 
 
 def _mesh_spectrum(args) -> int:
+    if args.out is not None and args.out.suffix.lower() in SPECTRUM_SUFFIXES and not args.out.is_dir():
+        # one mesh into one file (the round trip into 'fit --target spectrum:FILE'), not a folder named s.txt
+        if len(args.paths) != 1 or args.descriptors or args.topology or args.workers or args.scheduler:
+            raise InvalidArgumentError(f"--out {args.out} is a spectrum file, for a single mesh; several meshes, "
+                                       "--descriptors, --topology, --workers and --scheduler need --out DIR")
+        mesh = load_mesh(args.paths[0], require_genus0=False)
+        spec = mesh_spectrum(mesh, args.numeig, args.mass)
+        ensure_directory(args.out.parent)
+        write_spectrum(args.out, spec.eigenvalues, f"first {spec.eigenvalues.size} cotan Laplace-Beltrami "
+                       f"eigenvalues of {args.paths[0]} ({args.mass} mass), ascending, 1/area; area "
+                       f"{mesh.area():.17g}")
+        return 0
     if args.out is not None:
         with make_executor(args.workers, args.scheduler) as executor:
             run_batch(args.paths, args.out, args.numeig, mass=args.mass, descriptors=args.descriptors,

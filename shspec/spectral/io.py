@@ -5,8 +5,8 @@ and Shape-DNA files hold one value per line (what :func:`shspec.targets.read_spe
 trace two columns t, Z(t), the heat kernel signature one row per vertex and one column per time (the times in the
 header).
 
-Reading.  :func:`read_eigenvalues` also accepts two-column text (index, eigenvalue), as other tools write them;
-``read_spectrum`` flattens such a file into one interleaved list, so the second column is taken here instead.
+Reading.  :func:`read_eigenvalues` is :func:`shspec.spectrum_file.read_spectrum`, the one reader of every
+command: text (one or more columns, with or without a header, CSV), ``.npy`` and ``.json``.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 
 from ..atomic import atomic_output
 from ..errors import InvalidArgumentError
-from ..targets import read_spectrum
+from ..spectrum_file import read_spectrum as read_eigenvalues
 from .descriptors import heat_kernel_signature, hks_times, shape_dna
 from .heat import heat_trace
 
@@ -26,36 +26,6 @@ __all__ = ["read_eigenvalues", "write_values", "write_descriptors", "DESCRIPTOR_
 #: File name suffixes of :func:`write_descriptors`, after the stem.
 DESCRIPTOR_SUFFIXES = {"eigenvalues": ".eigenvalues.txt", "shapedna": ".shapedna.txt",
                        "heat_trace": ".heat_trace.txt", "hks": ".hks.txt"}
-
-
-def read_eigenvalues(path) -> np.ndarray:
-    """Eigenvalues from a file: what ``read_spectrum`` reads, plus two-column text (index, value) (module notes).
-
-    Returns
-    -------
-    (k,) ndarray
-        λ₀ = 0 first (prepended when the file starts above 0).
-
-    Raises
-    ------
-    InvalidArgumentError
-        If the file cannot be read or holds no finite eigenvalues.
-    """
-    path = Path(path)
-    if path.suffix not in (".npy", ".json"):
-        try:
-            table = np.loadtxt(path, ndmin=2)
-        except (OSError, ValueError) as exc:
-            raise InvalidArgumentError(f"cannot read a spectrum from {path}: {exc}") from None
-        if table.shape[0] > 1 and table.shape[1] == 2:
-            lam = table[:, 1]
-            if lam.size == 0 or not np.all(np.isfinite(lam)):
-                raise InvalidArgumentError(f"{path} holds no finite eigenvalues")
-            return np.concatenate([[0.0], lam]) if lam[0] > 1e-8 * lam[-1] else np.concatenate([[0.0], lam[1:]])
-        if table.shape[0] > 1 and table.shape[1] > 2:
-            raise InvalidArgumentError(f"{path}: {table.shape[1]} columns; a spectrum file has one value per line "
-                                       "(or two columns: index, eigenvalue)")
-    return read_spectrum(path)
 
 
 def write_values(path, values, header: str) -> Path:
