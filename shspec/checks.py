@@ -6,7 +6,7 @@ import numpy as np
 
 from .errors import InvalidArgumentError
 
-__all__ = ["check_int", "check_float", "check_options"]
+__all__ = ["check_int", "check_float", "check_options", "real_array"]
 
 
 def check_int(value, name: str, *, minimum: int | None = 0, maximum: int | None = None,
@@ -49,6 +49,33 @@ def check_float(value, name: str, *, minimum: float | None = None, positive: boo
     if minimum is not None and value < minimum:
         raise InvalidArgumentError(f"{name} must be >= {minimum:g}, got {value}")
     return value
+
+
+def real_array(value, name: str, *, error: type[Exception] = InvalidArgumentError) -> np.ndarray:
+    """``value`` as a float64 array, refusing what a plain ``np.asarray(value, dtype=float)`` would mangle.
+
+    Complex values are refused, not cast (numpy's cast drops the imaginary part with only a ComplexWarning);
+    strings, ragged lists and other non-numeric objects are refused by name instead of raising a bare
+    ``TypeError`` or ``ValueError``.
+
+    Raises
+    ------
+    InvalidArgumentError (or ``error``)
+        Naming ``name`` and what was wrong.
+    """
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError) as exc:  # ragged nested lists
+        raise error(f"{name} must be a numeric array: {exc}") from None
+    if np.iscomplexobj(arr):
+        raise error(f"{name} must be real, got complex values (dtype {arr.dtype}); pass the real part explicitly "
+                    "if it is what you mean")
+    if arr.dtype.kind not in "biuf":
+        try:
+            arr = arr.astype(float)
+        except (TypeError, ValueError):
+            raise error(f"{name} must be numeric, got {type(value).__name__} of {arr.dtype}") from None
+    return np.asarray(arr, dtype=np.float64)
 
 
 def check_options(options, cls: type, name: str = "options"):

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from .checks import check_int
+from .checks import check_int, real_array
 from .errors import InvalidArgumentError
 from .galerkin.solver import HarmonicModel
 from .mesh.bridge import fit_harmonic, mesh_band_limit
@@ -102,7 +102,9 @@ class Target:
     source: str = "harmonic"
 
     def __post_init__(self):
-        lam = np.asarray(self.eigenvalues, dtype=float)
+        if not isinstance(self.name, str):
+            raise InvalidArgumentError(f"a target's name is a string, got {self.name!r}")
+        lam = real_array(self.eigenvalues, "a target's eigenvalues")
         if lam.ndim != 1 or lam.size < 2 or not np.all(np.isfinite(lam)):
             raise InvalidArgumentError(f"a target needs a finite (k,) spectrum with k >= 2, got shape {lam.shape}")
         if abs(lam[0]) > 1e-8 * lam[-1] or np.any(lam[1:] <= 0) or np.any(np.diff(lam) < -1e-12 * lam[-1]):

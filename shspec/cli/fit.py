@@ -15,6 +15,7 @@ import h5py
 import numpy as np
 
 from ..atomic import write_text
+from ..checks import real_array
 from ..errors import InvalidArgumentError, OutputError
 from ..galerkin import HarmonicModel
 from ..galerkin.planning import plan_numeig
@@ -74,7 +75,7 @@ def read_initial(path: Path, model) -> np.ndarray:
         out = np.zeros(model.nparams)
         out[:min(a.size, out.size)] = a[:out.size]
         return out
-    value = np.asarray(value, dtype=float).ravel()
+    value = real_array(value, f"the starting point in {path}").ravel()
     if value.shape != (model.nparams,):
         raise InvalidArgumentError(f"{path} holds {value.size} values; the mesh model has {model.nparams} vertices")
     return value

@@ -253,6 +253,9 @@ class HarmonicModel(SpectralModel):
         The quadratic forms come from the exact GLQ quadrature (:mod:`shspec.galerkin.gridforms`), equal to the
         Gaunt-table contraction to rounding and 6-20× faster than it at the sizes of a fit
         (``benchmarks/bench_iteration.py``)."""
+        if not isinstance(spec, Spectrum):
+            raise InvalidArgumentError(f"jacobian needs the Spectrum of a solve (model.spectrum(...)), got "
+                                       f"{type(spec).__name__}")
         q = self.grid_forms(spec.eigenvectors)
         return -(q * spec.eigenvalues[None, :]).T
 
@@ -498,8 +501,8 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
     factor = _as_input_factor(rho)
     la = factor.lmax if lmax_factor is None else check_degree(lmax_factor, "lmax_factor")
     lmax = check_degree(lmax, "lmax", minimum=1, maximum=MAX_BASIS_DEGREE)
-    if truncation_tol is not None and not (np.isfinite(truncation_tol) and truncation_tol > 0):
-        raise InvalidArgumentError(f"truncation_tol must be None or finite and > 0, got {truncation_tol!r}")
+    if truncation_tol is not None:
+        truncation_tol = check_float(truncation_tol, "truncation_tol (None or finite and > 0)", positive=True)
     # degrees above 2·Lb do not couple two basis functions: dropping them changes nothing
     # the positivity of the cut factor is checked below (with the cause in the message): the model need not again
     model = HarmonicModel(lmax, min(la, 2 * lmax), table=table, cache_dir=cache_dir, build=build,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +60,8 @@ def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None
     triangles without shared vertices, so for STL coincident vertices are merged (trimesh's ``process=True``);
     otherwise every STL file would load as a soup of disconnected triangles.
     """
+    if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        raise InvalidArgumentError(f"a mesh file is a non-empty path, got {path!r}")
     path = Path(path)
     _check_suffix(path)
     if not path.is_file():
