@@ -6,7 +6,7 @@ import numpy as np
 
 from .errors import InvalidArgumentError
 
-__all__ = ["check_int", "check_float", "check_options", "real_array"]
+__all__ = ["check_int", "check_float", "check_choice", "check_options", "real_array"]
 
 
 def check_int(value, name: str, *, minimum: int | None = 0, maximum: int | None = None,
@@ -48,6 +48,20 @@ def check_float(value, name: str, *, minimum: float | None = None, positive: boo
         raise InvalidArgumentError(f"{name} must be > 0, got {value}")
     if minimum is not None and value < minimum:
         raise InvalidArgumentError(f"{name} must be >= {minimum:g}, got {value}")
+    return value
+
+
+def check_choice(value, name: str, choices) -> str:
+    """``value`` after checking that it is one of the strings ``choices`` (an array or another type is refused by
+    name, not by numpy's "truth value of an array is ambiguous").
+
+    Raises
+    ------
+    InvalidArgumentError
+        Naming ``name``, the choices and the value.
+    """
+    if not isinstance(value, str) or value not in choices:
+        raise InvalidArgumentError(f"{name} must be one of {tuple(choices)}, got {value!r}")
     return value
 
 

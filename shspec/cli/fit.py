@@ -66,8 +66,8 @@ def read_initial(path: Path, model) -> np.ndarray:
             value = np.load(path, allow_pickle=False)
         else:
             value = np.loadtxt(path, ndmin=1)
-    except (OSError, KeyError, ValueError, TypeError) as exc:
-        raise InvalidArgumentError(f"cannot read a starting point from {path}: {exc}") from None
+    except (OSError, KeyError, ValueError, TypeError, EOFError) as exc:
+        raise InvalidArgumentError(f"cannot read a starting point from {path}: {exc or type(exc).__name__}") from None
     if isinstance(model, HarmonicModel):
         a = as_coefficients(value)
         if a.size > model.nparams and np.any(a[model.nparams:] != 0):

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ..checks import check_int, check_options
+from ..checks import check_float, check_int, check_options
 from ..errors import InvalidArgumentError
 from .cotan import cotan_stiffness, vertex_areas
 from .mobius import center_mesh
@@ -74,9 +74,7 @@ class CMCFOptions:
 
     def __post_init__(self):
         for name in ("step", "tol", "cg_tol"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise InvalidArgumentError(f"CMCFOptions.{name} must be finite and > 0, got {value!r}")
+            check_float(getattr(self, name), f"CMCFOptions.{name}", positive=True)
         for name in ("stall_iterations", "max_iter", "refactor_after"):
             value = getattr(self, name)
             check_int(value, f"CMCFOptions.{name}", minimum=1)

@@ -51,8 +51,14 @@ def ncoeffs(lmax: int) -> int:
 
 def flat_index(l, m):
     """Flat index ``l*l + l + m`` of the harmonic (l, m); works elementwise on arrays."""
-    l = np.asarray(l)
-    m = np.asarray(m)
+    l = real_array(l, "l")
+    m = real_array(m, "m")
+    if np.any(l != np.round(l)) or np.any(m != np.round(m)):
+        raise InvalidArgumentError("the degree l and order m must be integers")
+    try:
+        l, m = np.broadcast_arrays(l.astype(np.int64), m.astype(np.int64))
+    except ValueError:
+        raise InvalidArgumentError(f"l and m of shapes {l.shape} and {m.shape} do not broadcast") from None
     if np.any(l < 0) or np.any(np.abs(m) > l):
         raise InvalidArgumentError("need l >= 0 and |m| <= l")
     return l * l + l + m
