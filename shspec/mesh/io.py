@@ -68,11 +68,19 @@ def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None
         raise MeshError(f"{path}: no such file")
     process = path.suffix.lower() == ".stl" if merge_vertices is None else bool(merge_vertices)
     try:
-        loaded = trimesh.load(path, process=process, force="mesh")
+        # unprocessed first: trimesh's processing drops faces at NaN vertices, which would then be reported as holes
+        loaded = trimesh.load(path, process=False, force="mesh")
     except Exception as exc:  # trimesh raises many unrelated types on malformed input
         raise MeshError(f"{path}: cannot read mesh: {exc}") from exc
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise MeshError(f"{path}: holds no triangles")
+    vertices = np.asarray(loaded.vertices)
+    bad = np.flatnonzero(~np.all(np.isfinite(vertices), axis=1))
+    if bad.size:
+        raise MeshError(f"{path}: {bad.size} vertices have NaN or inf coordinates (first: vertex {bad[0]} = "
+                        f"{vertices[bad[0]].tolist()})")
+    if process:
+        loaded = trimesh.Trimesh(vertices, np.asarray(loaded.faces), process=True)
     mesh = TriangleMesh(np.asarray(loaded.vertices), np.asarray(loaded.faces))
     if not validate:
         return mesh
@@ -82,8 +90,9 @@ def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None
         duplicates = mesh.nvertices - np.unique(mesh.vertices, axis=0).shape[0]
         if duplicates and not process:
             raise MeshError(f"{path}: {exc}; {duplicates} of its {mesh.nvertices} vertices repeat the position of "
-                            "another (faces that do not share their vertices?): weld them with --merge-vertices "
-                            "(merge_vertices=True)") from None
+                            "another (faces that do not share their vertices?): weld them (load_mesh(..., "
+                            "merge_vertices=True), 'shspec cmcf --merge-vertices', or save the mesh as STL, which is "
+                            "always welded)") from None
         raise
 
 
