@@ -30,6 +30,9 @@ def ensure_directory(path: str | os.PathLike, *, error: type[OSError] = OutputEr
         If a file stands in the way or the directory cannot be created.
     """
     out = Path(path)
+    if out.is_symlink() and not out.exists():  # mkdir would say only "File exists"
+        raise error(f"the {what} {out} is a symbolic link to {os.readlink(out)}, which does not exist; create that "
+                    "folder or remove the link")
     if out.exists() and not out.is_dir():
         raise error(f"the {what} {out} is a file, not a directory")
     try:

@@ -105,8 +105,11 @@ class Target:
         if not isinstance(self.name, str):
             raise InvalidArgumentError(f"a target's name is a string, got {self.name!r}")
         lam = real_array(self.eigenvalues, "a target's eigenvalues")
-        if lam.ndim != 1 or lam.size < 2 or not np.all(np.isfinite(lam)):
-            raise InvalidArgumentError(f"a target needs a finite (k,) spectrum with k >= 2, got shape {lam.shape}")
+        if lam.ndim != 1 or lam.size < 2:
+            raise InvalidArgumentError(f"a target needs a (k,) spectrum with k >= 2, got shape {lam.shape}")
+        bad = np.flatnonzero(~np.isfinite(lam))
+        if bad.size:
+            raise InvalidArgumentError(f"a target's eigenvalue {bad[0]} is {lam[bad[0]]}; every one must be finite")
         if abs(lam[0]) > 1e-8 * lam[-1] or np.any(lam[1:] <= 0) or np.any(np.diff(lam) < -1e-12 * lam[-1]):
             raise InvalidArgumentError("a target spectrum must start with λ₀ = 0 and ascend through positive values")
         object.__setattr__(self, "eigenvalues", lam)

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..atomic import write_text
 from ..checks import real_array
+from ._common import whole_number
 from ..errors import InvalidArgumentError, OutputError
 from ..galerkin import HarmonicModel
 from ..galerkin.planning import plan_numeig
@@ -104,7 +105,8 @@ def register(subparsers) -> None:
     p.add_argument("--lmax", type=int, default=None,
                    help="basis band limit Lb (default: with --numeig, 30; without, the planned Lb: the smallest at "
                    "which the reference's first K eigenvalues change by at most 1e-6 from Lb - 2)")
-    p.add_argument("--lmax-factor", type=int, default=15, help="factor band limit La")
+    p.add_argument("--lmax-factor", type=whole_number(1, "the degree La of rho; at 0 rho is constant, a round sphere"), default=15,
+                   help="factor band limit La")
     p.add_argument("--numeig", type=_numeig, default=None,
                    help="eigenvalues matched, lambda_0 = 0 included (a spectrum: file's first NUMEIG; all if fewer). "
                    "Default for harmonic fits: planned, the smallest K of shspec identifiability's candidates that "

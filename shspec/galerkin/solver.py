@@ -570,8 +570,11 @@ def _truncation_cause(factor: ConformalFactor, la: int) -> str:
         else:
             return (f". The given rho (degree {factor.lmax}) is positive: cutting it at La = {la} made it negative; "
                     f"raise lmax_factor (at most 2*lmax)")
-    tail = tail_bound(factor.coefficients, factor.lmax)
     mean = factor.area / (4 * np.pi)
+    if not mean > 0:  # a zero or negative mean is no truncation artefact: no positive function has it
+        return (f". Its mean value is {mean:.3g}: no positive rho has a mean <= 0, so this is not the truncation of "
+                "a positive function; a metric needs rho > 0 everywhere")
+    tail = tail_bound(factor.coefficients, factor.lmax)
     if not tail < 0.01 * mean:
         return (f". Its coefficients have not decayed at their last degree {factor.lmax} (the part above it is "
                 f"estimated at {tail:.3g}, against a mean of {mean:.3g}): this is probably the truncation of a "

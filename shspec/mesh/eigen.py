@@ -162,8 +162,9 @@ def _select(lam, V, k, rtol, whole):
                       f"{k} are returned, so the group is cut and its members' eigenvectors are arbitrary",
                       RuntimeWarning, stacklevel=3)
     end = end if whole else k
-    if end == lam.size and whole and end > k:
-        # The group fills every computed pair: the caller must ask for more, we cannot tell where it ends.
+    if end == lam.size and whole and end > k and lam.size < V.shape[0]:
+        # The group fills every computed pair: the caller must ask for more, we cannot tell where it ends (when
+        # every pair of the pencil was computed, it ends there: the group is whole).
         raise ConvergenceError(f"eigenvalues {k - 1}..{end - 1} form one degenerate group reaching the end of the "
                                "computed pairs; ask for more eigenpairs")
     return Spectrum(lam[:end].copy(), V[:, :end].copy())
