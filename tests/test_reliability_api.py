@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 import shspec
 from shspec.cli import main
-from shspec.errors import ConventionError, InvalidArgumentError, MeshError, ShspecError
+from shspec.errors import ConventionError, InvalidArgumentError, ShspecError
 from shspec.galerkin import HarmonicModel
 from shspec.mesh.shapes import icosphere
 from shspec.sphere.factor import ConformalFactor

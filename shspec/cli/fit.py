@@ -27,6 +27,7 @@ from ..inverse.schedule import DEFAULT_STAGE_MAX_ITER, default_hop_degree, degre
 from ..targets import TARGET_SOURCES, Target, parse_target, read_spectrum
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.io import load_mesh
+from ..mesh.progress import mesh_progress
 from ..mesh.refine import eigenvalue_errors, trusted_numeig
 from ..pipeline.adaptive import AdaptiveOptions, adaptive_fit
 from ..parallel import make_executor
@@ -319,8 +320,9 @@ def _fit(args) -> int:
         numeig = _auto_cap(args)
     elif numeig == "all":
         numeig = _mesh_size(args) - 1
-    target = parse_target(args.target, lmax=args.lmax, numeig=numeig, lmax_factor=args.lmax_factor,
-                          source=args.source, subdivisions=args.subdivisions)
+    with mesh_progress(not args.quiet):  # a large mesh target: its size, and progress through cMCF and eigenpairs
+        target = parse_target(args.target, lmax=args.lmax, numeig=numeig, lmax_factor=args.lmax_factor,
+                              source=args.source, subdivisions=args.subdivisions)
     if planned is not None and target.numeig < planned["numeig"]:
         print(f"warning: the target has only {target.numeig} eigenvalues; the plan asked for {planned['numeig']}",
               file=sys.stderr)

@@ -9,6 +9,7 @@ import numpy as np
 from ..errors import InvalidArgumentError
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.io import load_mesh
+from ..mesh.progress import mesh_progress
 from ..spectrum_file import read_spectrum_file
 from ..spectral.topology import MIN_EIGENVALUES, estimate_topology
 
@@ -34,6 +35,7 @@ def register(subparsers) -> None:
                    help="relative noise of each eigenvalue, propagated into the uncertainty (default: the largest "
                    "relative error of a spectrum file's error column, else 0)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--quiet", action="store_true", help="no size estimate or progress bar for large meshes")
     p.set_defaults(func=_topology)
 
 
@@ -48,7 +50,8 @@ def _topology(args) -> int:
     elif kind == "mesh" and arg:
         mesh = load_mesh(arg, require_genus0=False)
         numeig = args.numeig or min(DEFAULT_MESH_NUMEIG, max(MIN_EIGENVALUES, mesh.nvertices // 5))
-        lam = mesh_spectrum(mesh, numeig).eigenvalues[:numeig]
+        with mesh_progress(not args.quiet):
+            lam = mesh_spectrum(mesh, numeig).eigenvalues[:numeig]
         area = mesh.area() if area is None else area
     else:
         raise InvalidArgumentError(f"unknown target {args.target!r}: use spectrum:FILE or mesh:PATH")
