@@ -25,7 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
 
-from ..checks import check_float, check_int
+from ..checks import check_float, check_int, real_array
 from ..errors import BandLimitError, InvalidArgumentError, NotPositiveError, ShspecError, TruncationWarning
 from ..gaunt.cache import get_table
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
@@ -529,6 +529,8 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
 
 
 def _as_input_factor(rho) -> ConformalFactor:
+    if isinstance(rho, (str, bytes, list, tuple, np.ndarray)):
+        real_array(rho, "rho")  # named as the argument it is, not as the coefficients inside a factor
     try:
         return as_factor(rho)
     except ShspecError:
