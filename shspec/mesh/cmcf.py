@@ -228,30 +228,30 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
     if shown(mesh.nvertices):
         announce(f"cMCF of a {mesh.nvertices}-vertex mesh: up to {opt.max_iter} flow steps (a sparse factorization, "
                  f"then conjugate-gradient solves) until its roundness is at most {opt.tol:g}")
-    with bar(mesh.nvertices, opt.max_iter, "cMCF", "steps") as steps:
-        for it in range(1, opt.max_iter + 1):
-            A = (sp.diags(m) + opt.step * L0).tocsc()
-            b = m[:, None] * x
-            if lu is None:
+    steps = bar(mesh.nvertices, opt.max_iter, "cMCF", "steps", iterable=range(1, opt.max_iter + 1))
+    # the bar closes when the loop ends, also by break (tqdm closes its iterator in a finally)
+    for it in steps:
+        A = (sp.diags(m) + opt.step * L0).tocsc()
+        b = m[:, None] * x
+        if lu is None:
+            lu = splu(A)
+            x, cg_its = lu.solve(b), 0
+        else:
+            # Start CG from the best multiple of the current positions: a step mostly shrinks the surface
+            # (by 1/(1 + 2δ) for a round sphere), and only the small rest is left for CG to find.
+            Ax = A @ x
+            x0 = x * (np.einsum("ij,ij->j", x, b) / np.einsum("ij,ij->j", x, Ax))
+            x, cg_its = _pcg(A, b, x0, lu.solve, opt.cg_tol, opt.refactor_after)
+            if cg_its > opt.refactor_after:
                 lu = splu(A)
-                x, cg_its = lu.solve(b), 0
-            else:
-                # Start CG from the best multiple of the current positions: a step mostly shrinks the surface
-                # (by 1/(1 + 2δ) for a round sphere), and only the small rest is left for CG to find.
-                Ax = A @ x
-                x0 = x * (np.einsum("ij,ij->j", x, b) / np.einsum("ij,ij->j", x, Ax))
-                x, cg_its = _pcg(A, b, x0, lu.solve, opt.cg_tol, opt.refactor_after)
-                if cg_its > opt.refactor_after:
-                    lu = splu(A)
-                    x = lu.solve(b)
-            x, m = _normalize(x, vertex_areas(mesh.with_vertices(x)))
-            history.append(roundness(x, m))
-            steps.update()
-            steps.set_postfix_str(f"roundness {history[-1]:.2g}", refresh=False)
-            if history[-1] < best[0]:
-                best = (history[-1], x)
-            if history[-1] <= opt.tol or _stalled(history, opt):
-                break
+                x = lu.solve(b)
+        x, m = _normalize(x, vertex_areas(mesh.with_vertices(x)))
+        history.append(roundness(x, m))
+        steps.set_postfix_str(f"roundness {history[-1]:.2g}", refresh=False)
+        if history[-1] < best[0]:
+            best = (history[-1], x)
+        if history[-1] <= opt.tol or _stalled(history, opt):
+            break
     round_final, x = best
     converged = round_final <= opt.tol or _stalled(history, opt)
     sphere = mesh.with_vertices(x / np.linalg.norm(x, axis=1)[:, None])

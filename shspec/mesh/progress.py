@@ -64,6 +64,8 @@ def announce(text: str, memory: int = 0) -> None:
     tqdm.write(text, file=sys.stderr)
 
 
-def bar(nvertices: int, total: int, desc: str, unit: str) -> tqdm:
-    """A tqdm bar on stderr, disabled unless :func:`shown` for this mesh size; use it as a context manager."""
-    return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, leave=False, disable=not shown(nvertices))
+def bar(nvertices: int, total: int, desc: str, unit: str, iterable=None) -> tqdm:
+    """A tqdm bar on stderr, disabled unless :func:`shown` for this mesh size: a context manager, or the wrapper of
+    ``iterable``."""
+    return tqdm(iterable, total=total, desc=desc, unit=unit, file=sys.stderr, leave=False,
+                disable=not shown(nvertices))
