@@ -147,15 +147,18 @@ def test_the_mesh_reader_gives_a_mesh_or_a_shspec_error(tmp_path_factory, conten
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(content=st.binary(max_size=300), reader=st.sampled_from(["rho", "init", "checkpoint", "result"]),
+@given(content=st.binary(max_size=300), reader=st.sampled_from(["rho", "init", "checkpoint", "result", "table"]),
        suffix=st.sampled_from([".npy", ".json", ".txt", ".h5"]))
 def test_the_other_readers_give_a_result_or_a_shspec_error(tmp_path_factory, content, reader, suffix):
     from shspec.cli._rho import parse_rho
     from shspec.cli.fit import read_initial
+    from shspec.gaunt.cache import load_table, table_path
     from shspec.inverse.checkpoint import load_checkpoint, load_result_summary
 
-    path = tmp_path_factory.mktemp("read") / f"f{suffix}"
+    folder = tmp_path_factory.mktemp("read")
+    path = table_path(2, 2, folder) if reader == "table" else folder / f"f{suffix}"
     path.write_bytes(content)
     calls = {"rho": lambda: parse_rho(str(path), 2), "init": lambda: read_initial(path, HarmonicModel(4, 2)),
-             "checkpoint": lambda: load_checkpoint(path, "fp"), "result": lambda: load_result_summary(path)}
+             "checkpoint": lambda: load_checkpoint(path, "fp"), "result": lambda: load_result_summary(path),
+             "table": lambda: load_table(2, 2, folder)}
     _obeys_the_rule(calls[reader])
