@@ -6,7 +6,7 @@ import numpy as np
 
 from .errors import InvalidArgumentError
 
-__all__ = ["check_int", "check_float", "check_choice", "check_options", "real_array"]
+__all__ = ["check_int", "check_float", "check_choice", "check_options", "real_array", "finite_array"]
 
 
 def check_int(value, name: str, *, minimum: int | None = 0, maximum: int | None = None,
@@ -90,6 +90,28 @@ def real_array(value, name: str, *, error: type[Exception] = InvalidArgumentErro
         except (TypeError, ValueError):
             raise error(f"{name} must be numeric, got {type(value).__name__} of {arr.dtype}") from None
     return np.asarray(arr, dtype=np.float64)
+
+
+def finite_array(value, name: str, shape: tuple) -> np.ndarray:
+    """``value`` as a float64 array of ``shape`` with finite entries (:func:`real_array` first).
+
+    A wrong shape and a NaN are told apart: the message names the shape expected and given, or the first entry
+    that is not finite (a NaN in an array of the right shape is not a shape problem).
+
+    Raises
+    ------
+    InvalidArgumentError
+        Naming ``name`` and the problem.
+    """
+    arr = real_array(value, name)
+    if arr.shape != tuple(shape):
+        raise InvalidArgumentError(f"{name} must have shape {tuple(shape)}, got shape {arr.shape}")
+    bad = np.argwhere(~np.isfinite(arr))
+    if bad.size:
+        where = tuple(int(i) for i in bad[0])
+        raise InvalidArgumentError(f"{name} must be finite; entry {where[0] if len(where) == 1 else where} is "
+                                   f"{arr[where]}")
+    return arr
 
 
 def check_options(options, cls: type, name: str = "options"):

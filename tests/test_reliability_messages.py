@@ -104,3 +104,15 @@ def test_a_failed_embedding_says_why(tmp_path, capsys, monkeypatch):
     assert main(["embed", str(tmp_path / "s.obj"), str(tmp_path / "c.txt"), "--out", str(tmp_path / "e.obj")]) == 1
     err = capsys.readouterr().err
     assert "the embedding failed: 3 faces are folded" in err
+
+
+def test_a_nan_starting_point_is_named_as_nan_not_as_a_shape():
+    from shspec.galerkin import HarmonicModel
+    from shspec.inverse import FitOptions, blob_factor, fit, harmonic_target
+
+    model = HarmonicModel(6, 6)
+    init = np.zeros(model.nparams)
+    init[3] = np.nan
+    with pytest.raises(InvalidArgumentError, match=r"entry 3 is nan") as info:
+        fit(harmonic_target(blob_factor(), lmax=6, numeig=9), model, FitOptions(starts=1), init=init)
+    assert "shape" not in str(info.value)

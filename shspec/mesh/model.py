@@ -17,7 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..atomic import atomic_output
-from ..checks import check_options
+from ..checks import check_options, finite_array
 from ..errors import InvalidArgumentError, MeshError, NotPositiveError
 from ..model import TRANSFORMS, SpectralModel, Spectrum, regularization_weight
 from ..sphere.evaluate import sample_harmonic
@@ -227,9 +227,7 @@ class MeshModel(SpectralModel):
         value : float
         gradient : (n,) array
         """
-        c = np.asarray(params, dtype=float)
-        if c.shape != (self.nparams,) or not np.all(np.isfinite(c)):
-            raise InvalidArgumentError(f"params must be a finite array of shape ({self.nparams},)")
+        c = finite_array(params, "params", (self.nparams,))
         weight = float(weight)
         if not np.isfinite(weight) or weight < 0:
             raise InvalidArgumentError(f"weight must be finite and >= 0, got {weight}")

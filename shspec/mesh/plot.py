@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..checks import finite_array
 from ..errors import InvalidArgumentError
 from ..plotstyle import linear_colorbar_ticks, log_colorbar_ticks, style_hammer
 from .cotan import vertex_areas
@@ -77,9 +78,7 @@ def plot_hammer(sphere: TriangleMesh, values, *, ax=None, cmap: str = "viridis",
     from matplotlib.colors import LogNorm, Normalize
     if not isinstance(sphere, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(sphere).__name__}")
-    f = np.asarray(values, dtype=float)
-    if f.shape != (sphere.nvertices,) or not np.all(np.isfinite(f)):
-        raise InvalidArgumentError(f"values must be a finite array of shape ({sphere.nvertices},)")
+    f = finite_array(values, "values", (sphere.nvertices,))
     if log and np.any(f <= 0):
         raise InvalidArgumentError("log colouring needs values > 0")
     lo, hi = percentiles
