@@ -85,8 +85,8 @@ VALUES = [None, "", "x", -1, 0, 1, 2, 3, 1.5, -0.5, np.nan, np.inf, 1e308, True,
 #: embed and the convergence studies are covered by their own tests: with valid small arguments they run).
 CALLABLES = ["cilm_to_vector", "vector_to_cilm", "vector_to_shcoeffs", "degree_order", "flat_index", "ncoeffs",
              "wigner3j", "real_gaunt", "ConformalFactor", "Target", "TriangleMesh", "FitOptions", "Stage",
-             "CMCFOptions", "EmbedOptions", "align", "load_mesh", "mesh_spectrum", "spectrum", "get_table",
-             "HarmonicModel", "MeshModel"]
+             "CMCFOptions", "EmbedOptions", "align", "load_mesh", "save_mesh", "mesh_spectrum", "spectrum",
+             "get_table", "GauntTable", "HarmonicModel", "MeshModel"]
 
 
 def _obeys_the_rule(call):

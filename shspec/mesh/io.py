@@ -107,12 +107,14 @@ def save_mesh(mesh: TriangleMesh, path) -> Path:
     Raises
     ------
     InvalidArgumentError
-        If ``mesh`` is not a TriangleMesh or the suffix is unsupported.
-    MeshError
-        If the file cannot be written.
+        If ``mesh`` is not a TriangleMesh, ``path`` is not a path or the suffix is unsupported.
+    OutputError
+        If the file cannot be written (:func:`shspec.atomic.atomic_output`: the previous file is then intact).
     """
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
+    if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        raise InvalidArgumentError(f"a mesh file is a non-empty path, got {path!r}")
     path = Path(path)
     _check_suffix(path)
     tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
