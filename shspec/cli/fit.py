@@ -327,7 +327,8 @@ def _fit(args) -> int:
         print(f"warning: the target has only {target.numeig} eigenvalues; the plan asked for {planned['numeig']}",
               file=sys.stderr)
     if auto:
-        target, extra["numeig_auto"] = _auto_numeig(args, target)
+        with mesh_progress(not args.quiet):  # the 4-to-1 subdivision's eigenpairs
+            target, extra["numeig_auto"] = _auto_numeig(args, target)
     scheme, _, where = args.target.partition(":")
     if not args.allow_any_genus and scheme in ("spectrum", "mesh"):
         # the whole file, not only the K fitted: the heat trace needs many eigenvalues to be confident
