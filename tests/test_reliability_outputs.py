@@ -147,3 +147,20 @@ def test_sigterm_to_a_fit_without_checkpoints_writes_the_best_state(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["interrupted"] is True and summary["starts"]
     assert (out / "result.h5").is_file()
+
+
+def test_an_interrupt_between_two_starts_keeps_the_finished_ones(monkeypatch):
+    from shspec.inverse.schedule import FitProblem
+
+    real = FitProblem.initial
+
+    def interrupted_at_start_1(self, rng, index):
+        if index == 1:
+            raise KeyboardInterrupt  # SIGTERM, as the CLI turns it, while start 1 is being set up
+        return real(self, rng, index)
+
+    monkeypatch.setattr(FitProblem, "initial", interrupted_at_start_1)
+    target = harmonic_target(blob_factor(), lmax=8, numeig=10)
+    result = fit(target, HarmonicModel(8, 4), FitOptions(starts=3, max_iter=2, basin_hops=0, schedule=(),
+                                                         progress=False))
+    assert result.interrupted and [r.index for r in result.starts] == [0]
