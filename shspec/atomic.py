@@ -7,6 +7,11 @@ leaves the destination as it was.  A process killed with SIGKILL cannot clean up
 named ``<destination name>.<random>.tmp`` (:func:`temporary_files` finds them, for whoever owns the lock of the
 destination to remove).
 
+Outputs.  :func:`atomic_output` (and its shorthands :func:`write_text` and :func:`save_figure`) is what every command
+writes its results through: on a full disk, a read-only folder or a missing permission it raises one
+:class:`~shspec.errors.OutputError` that names the file, says why in words, and says that the previous file is
+intact (or that none was written), instead of a raw ``OSError`` or a half-written file.
+
 Files are created with the mode ``mode & ~umask`` (0644 under the usual umask 022), like any file a program
 writes, not with the 0600 of :func:`tempfile.mkstemp`, so that a shared folder stays readable to its users.
 """
@@ -14,6 +19,7 @@ writes, not with the 0600 of :func:`tempfile.mkstemp`, so that a shared folder s
 from __future__ import annotations
 
 import contextlib
+import errno
 import glob
 import os
 import tempfile
@@ -22,7 +28,10 @@ from typing import Iterator
 
 import h5py
 
-__all__ = ["TEMP_SUFFIX", "atomic_path", "atomic_hdf5", "temporary_files", "umask_mode"]
+from .errors import OutputError, ShspecError
+
+__all__ = ["TEMP_SUFFIX", "atomic_path", "atomic_hdf5", "atomic_output", "write_text", "save_figure",
+           "write_failure", "temporary_files", "umask_mode"]
 
 TEMP_SUFFIX = ".tmp"
 
@@ -119,6 +128,76 @@ def atomic_hdf5(path: str | os.PathLike, *, mode: int = 0o644, **h5py_options) -
     with atomic_path(path, mode=mode) as tmp:
         with h5py.File(tmp, "w", **h5py_options) as f:
             yield f
+
+
+#: Plain words for the errno values a full or protected output location gives.
+_REASONS = {errno.ENOSPC: "the disk is full (no space left on device)",
+            errno.EDQUOT: "the disk quota is exceeded",
+            errno.EROFS: "the file system is read-only",
+            errno.EACCES: "permission denied",
+            errno.EPERM: "permission denied"}
+
+
+def write_failure(path: str | os.PathLike, exc: BaseException, *, existed: bool,
+                  error: type[OSError] = OutputError) -> OSError:
+    """The error to raise when an atomic write of ``path`` failed with ``exc``: it names the file, the reason in
+    words and what is left (the previous file intact, or nothing written).  ``existed`` says whether ``path`` held a
+    file before the write."""
+    reason = _REASONS.get(getattr(exc, "errno", None)) or getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+    left = f"the previous {Path(path).name} is intact" if existed else "nothing was written"
+    out = error(f"cannot write {path}: {reason}; {left}")
+    out.errno = getattr(exc, "errno", None)
+    return out
+
+
+@contextlib.contextmanager
+def atomic_output(path: str | os.PathLike, *, mode: int = 0o644, error: type[OSError] = OutputError,
+                  hdf5: bool = False) -> Iterator[Path]:
+    """:func:`atomic_path` for a command's output: a failure of the file system becomes one ``error``.
+
+    Parameters
+    ----------
+    path : path-like
+        The destination; its folder must exist.
+    mode : int
+        As for :func:`atomic_path`.
+    error : OSError subclass
+        What to raise (default :class:`~shspec.errors.OutputError`; checkpoints raise ``CheckpointError``).
+    hdf5 : bool
+        The block writes HDF5 through h5py, which reports a failed flush (a full disk) as ``RuntimeError``; treat
+        that as a write failure too.
+
+    Raises
+    ------
+    OutputError (or ``error``)
+        If the temporary file cannot be created, written, synced or renamed (:func:`write_failure`).  Errors of
+        shspec raised inside the block propagate unchanged.
+    """
+    path = Path(path)
+    existed = path.exists()
+    caught = (OSError, RuntimeError) if hdf5 else (OSError,)
+    try:
+        with atomic_path(path, mode=mode) as tmp:
+            yield tmp
+    except ShspecError:
+        raise
+    except caught as exc:
+        raise write_failure(path, exc, existed=existed, error=error) from exc
+
+
+def write_text(path: str | os.PathLike, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically (:func:`atomic_output`); returns the path."""
+    with atomic_output(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
+
+
+def save_figure(fig, path: str | os.PathLike, **savefig_options) -> Path:
+    """Save a matplotlib figure to ``path`` atomically (:func:`atomic_output`), in the format of its suffix."""
+    path = Path(path)
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, format=path.suffix.lstrip(".") or "png", **savefig_options)
+    return path
 
 
 def temporary_files(path: str | os.PathLike) -> list[Path]:

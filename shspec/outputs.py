@@ -6,6 +6,7 @@ import csv
 import os
 from pathlib import Path
 
+from .atomic import atomic_output
 from .errors import OutputError
 
 __all__ = ["ensure_directory", "write_csv"]
@@ -29,6 +30,9 @@ def ensure_directory(path: str | os.PathLike, *, error: type[OSError] = OutputEr
         If a file stands in the way or the directory cannot be created.
     """
     out = Path(path)
+    if out.is_symlink() and not out.exists():  # mkdir would say only "File exists"
+        raise error(f"the {what} {out} is a symbolic link to {os.readlink(out)}, which does not exist; create that "
+                    "folder or remove the link")
     if out.exists() and not out.is_dir():
         raise error(f"the {what} {out} is a file, not a directory")
     try:
@@ -50,11 +54,8 @@ def write_csv(path: str | os.PathLike, rows: list[dict], fields: list[str] | Non
     path = Path(path)
     if not rows:
         raise OutputError(f"no rows to write to {path}")
-    try:
-        with open(path, "w", newline="") as fh:
-            writer = csv.DictWriter(fh, fieldnames=list(rows[0]) if fields is None else fields, restval="")
-            writer.writeheader()
-            writer.writerows(rows)
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc}") from exc
+    with atomic_output(path) as tmp, open(tmp, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(rows[0]) if fields is None else fields, restval="")
+        writer.writeheader()
+        writer.writerows(rows)
     return path

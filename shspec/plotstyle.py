@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["style_hammer", "log_colorbar_ticks"]
+__all__ = ["style_hammer", "log_colorbar_ticks", "linear_colorbar_ticks"]
 
 #: Grid lines of a Hammer map, degrees: every 60° of longitude and 30° of latitude.  Denser labels overlap each
 #: other at the usual figure widths (and the ±75° parallels ran into the title).
@@ -18,11 +18,15 @@ def style_hammer(ax, *, fontsize: float = 7.0) -> None:
     ax.set_latitude_grid(30)
     ax.set_xticks(np.radians(LON_TICKS))
     ax.set_yticks(np.radians(LAT_TICKS))
-    import matplotlib.patheffects as pe
-
-    # longitude labels sit on the map itself: white with a dark outline reads on any colour map
-    ax.set_xticklabels([f"{d}°" for d in LON_TICKS], fontsize=fontsize + 1, color="white",
-                       path_effects=[pe.withStroke(linewidth=2, foreground="0.15")])
+    # Longitude labels go below the map, each under the point where its meridian crosses the equator: on the map
+    # (matplotlib's place) they hide the data they sit on.  Axes coordinates of the projection do not change when
+    # the figure is laid out again, so the positions hold after tight_layout or bbox_inches="tight".
+    ax.set_xticklabels([])
+    to_axes = ax.transProjection + ax.transAffine
+    for d in LON_TICKS:
+        x, _ = to_axes.transform((np.radians(d), 0.0))
+        ax.text(x, -0.03, f"{d}°", transform=ax.transAxes, ha="center", va="top", fontsize=fontsize + 1,
+                color="0.2")
     ax.set_yticklabels([f"{d}°" for d in LAT_TICKS], fontsize=fontsize + 1, color="0.2")
     ax.grid(True, alpha=0.35)
 
@@ -47,3 +51,16 @@ def log_colorbar_ticks(bar, vmin: float, vmax: float) -> None:
     axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:.3g}"))
     axis.set_minor_locator(NullLocator())
     axis.set_minor_formatter(NullFormatter())
+
+
+def linear_colorbar_ticks(bar) -> None:
+    """At most five ticks on a linear colour bar, with a common power of ten moved to the bar's end, so that labels
+    of small differences (1e-7) do not run into each other."""
+    from matplotlib.ticker import MaxNLocator, ScalarFormatter
+
+    axis = bar.ax.xaxis if bar.orientation == "horizontal" else bar.ax.yaxis
+    axis.set_major_locator(MaxNLocator(nbins=4, steps=[1, 2, 2.5, 5, 10],
+                                       symmetric=bool(np.isclose(-bar.vmin, bar.vmax))))
+    formatter = ScalarFormatter(useMathText=True)
+    formatter.set_powerlimits((-2, 3))
+    axis.set_major_formatter(formatter)

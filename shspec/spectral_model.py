@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import check_float
+from .checks import check_float, real_array
 from .errors import InvalidArgumentError
 
 __all__ = ["Spectrum", "SpectralModel", "TRANSFORMS", "regularization_weight"]
@@ -98,9 +98,13 @@ class SpectralModel(ABC):
     def energy(self, params: np.ndarray, target: np.ndarray, weights: np.ndarray | None = None,
                ) -> tuple[float, np.ndarray, Spectrum]:
         """E = ½ Σ_i w_i (λ_i − λ*_i)² and its gradient (nparams,), for a target spectrum (k,)."""
-        target = np.asarray(target, dtype=float)
+        target = real_array(target, "target spectrum")
+        if target.ndim != 1 or target.size == 0:
+            raise InvalidArgumentError(f"the target spectrum must be a non-empty (k,) array, got shape {target.shape}")
+        w = np.ones(target.size) if weights is None else real_array(weights, "weights")
+        if w.shape != target.shape:
+            raise InvalidArgumentError(f"weights must have the target's shape {target.shape}, got {w.shape}")
         spec = self.spectrum(params, target.size)
-        w = np.ones(target.size) if weights is None else np.asarray(weights, dtype=float)
         r = spec.eigenvalues - target
         return 0.5 * float(np.sum(w * r * r)), self.contract(spec, w * r), spec
 

@@ -12,15 +12,13 @@ its area is used instead.
 
 from __future__ import annotations
 
-import json
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 
-from .checks import check_int
+from .checks import check_int, real_array
 from .errors import InvalidArgumentError
 from .galerkin.model import HarmonicModel
 from .mesh.bridge import fit_harmonic, mesh_band_limit
@@ -32,6 +30,7 @@ from .mesh.shapes import star_surface
 from .mesh.triangle_mesh import TriangleMesh
 from .sphere.factor import ConformalFactor
 from .sphere.harmonics import flat_index, ncoeffs
+from .spectrum_file import read_spectrum
 
 __all__ = ["BLOB_HARMONIC", "blob_factor", "Target", "harmonic_target", "mesh_target", "spectrum_target",
            "read_spectrum", "estimate_area", "parse_target", "TARGET_SOURCES"]
@@ -103,9 +102,14 @@ class Target:
     source: str = "harmonic"
 
     def __post_init__(self):
-        lam = np.asarray(self.eigenvalues, dtype=float)
-        if lam.ndim != 1 or lam.size < 2 or not np.all(np.isfinite(lam)):
-            raise InvalidArgumentError(f"a target needs a finite (k,) spectrum with k >= 2, got shape {lam.shape}")
+        if not isinstance(self.name, str):
+            raise InvalidArgumentError(f"a target's name is a string, got {self.name!r}")
+        lam = real_array(self.eigenvalues, "a target's eigenvalues")
+        if lam.ndim != 1 or lam.size < 2:
+            raise InvalidArgumentError(f"a target needs a (k,) spectrum with k >= 2, got shape {lam.shape}")
+        bad = np.flatnonzero(~np.isfinite(lam))
+        if bad.size:
+            raise InvalidArgumentError(f"a target's eigenvalue {bad[0]} is {lam[bad[0]]}; every one must be finite")
         if abs(lam[0]) > 1e-8 * lam[-1] or np.any(lam[1:] <= 0) or np.any(np.diff(lam) < -1e-12 * lam[-1]):
             raise InvalidArgumentError("a target spectrum must start with λ₀ = 0 and ascend through positive values")
         object.__setattr__(self, "eigenvalues", lam)
@@ -193,52 +197,9 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
                   factors=flow.factors, source=source)
 
 
-def read_spectrum(path) -> np.ndarray:
-    """Eigenvalues from a file: plain text (one per line, or rows whose *last* column is the eigenvalue, as
-    ``shspec mesh-spectrum`` prints them; '#' comments), .npy, or .json (a list or {"eigenvalues": [...]});
-    λ₀ = 0 is prepended when missing.
-
-    Raises
-    ------
-    InvalidArgumentError
-        If the file cannot be read, is empty, holds a value that is not finite (named by its index), or is not
-        ascending (the first descent named).
-    """
-    path = Path(path)
-    try:
-        if path.suffix == ".npy":
-            lam = np.load(path, allow_pickle=False)
-        elif path.suffix == ".json":
-            data = json.loads(path.read_text())
-            lam = data["eigenvalues"] if isinstance(data, dict) else data
-        else:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", UserWarning)  # numpy warns on an empty file; we say it ourselves
-                lam = np.loadtxt(path, ndmin=2)
-            if lam.size and lam.shape[1] > 1:
-                lam = lam[:, -1]
-        lam = np.asarray(lam, dtype=float).ravel()
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise InvalidArgumentError(f"cannot read a spectrum from {path}: {exc}") from None
-    if lam.size == 0:
-        raise InvalidArgumentError(f"{path} holds no eigenvalues")
-    bad = np.flatnonzero(~np.isfinite(lam))
-    if bad.size:
-        raise InvalidArgumentError(f"{path}: eigenvalue {bad[0]} is {lam[bad[0]]} (every value must be finite)")
-    drop = np.flatnonzero(np.diff(lam) < -1e-12 * np.max(np.abs(lam)))
-    if drop.size:
-        i = int(drop[0])
-        raise InvalidArgumentError(f"{path} is not ascending: eigenvalue {i + 1} ({lam[i + 1]:.6g}) is below "
-                                   f"eigenvalue {i} ({lam[i]:.6g})")
-    if lam[0] > 1e-8 * lam[-1]:
-        lam = np.concatenate([[0.0], lam])
-    lam[0] = 0.0
-    return lam
-
-
 def spectrum_target(path, numeig: int | None = None) -> Target:
-    """A target read from a spectrum file (:func:`read_spectrum`), its first ``numeig`` eigenvalues (λ₀ = 0
-    included; default and cap: all of them); area and truth unknown."""
+    """A target read from a spectrum file (:func:`shspec.spectrum_file.read_spectrum`: every format of that module),
+    its first ``numeig`` eigenvalues (λ₀ = 0 included; default and cap: all of them); area and truth unknown."""
     lam = read_spectrum(path)
     if numeig is not None:
         lam = lam[:check_int(numeig, "numeig", minimum=2)]

@@ -17,9 +17,9 @@ import shspec
 #: The one declaration of the layer order, bottom first.
 LAYERS = (
     ("_version", "errors"),
-    ("checks",),
-    ("atomic", "outputs", "resources", "damping", "plotstyle", "parallel", "report"),
-    ("spectral_model", "sphere"),
+    ("checks", "atomic"),
+    ("outputs", "resources", "damping", "plotstyle", "parallel", "report"),
+    ("spectral_model", "sphere", "spectrum_file"),
     ("gaunt",),
     ("galerkin", "mesh"),
     ("targets", "embed"),

@@ -2,13 +2,20 @@
 
 Each module listed in ``_COMMAND_MODULES`` has a ``register(subparsers)`` function that adds its subcommands and sets
 ``func`` on them; ``func(args)`` returns the process exit code.
+
+SIGTERM (what ``kill``, a batch scheduler or a container stop sends) is handled like Ctrl-C: it raises
+``KeyboardInterrupt`` in the command, so a fit writes its finished starts and best state and every command leaves
+its outputs whole, instead of the process dying with nothing written.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import signal
 import sys
+import threading
 
 from .. import __version__
 from ..errors import ShspecError
@@ -30,6 +37,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _terminate(signum, frame):
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """Within the block, SIGTERM raises KeyboardInterrupt (module notes); the previous handler is restored after."""
+    if threading.current_thread() is not threading.main_thread():  # only the main thread may set handlers
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -37,7 +61,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        with _sigterm_as_interrupt():
+            return int(args.func(args) or 0)
     except ShspecError as exc:
         print(f"shspec {args.command}: error: {exc}", file=sys.stderr)
         return 1

@@ -53,6 +53,6 @@ def parse_rho(text: str, lmax_factor: int) -> ConformalFactor:
             data = np.loadtxt(path, ndmin=1)
         else:
             raise InvalidArgumentError(f"{path}: unknown coefficient file type {suffix!r} (use .npy, .json, .txt)")
-    except (OSError, ValueError) as exc:
-        raise InvalidArgumentError(f"cannot read coefficients from {path}: {exc}") from exc
+    except (OSError, ValueError, EOFError) as exc:  # np.load of an empty file: EOFError
+        raise InvalidArgumentError(f"cannot read coefficients from {path}: {exc or type(exc).__name__}") from exc
     return ConformalFactor(data, name=path.stem)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_path
+from ..atomic import atomic_output
 from ..embed.embed import EmbedOptions, embed
 from ..errors import InvalidArgumentError, OutputError
 from ..pipeline.validation import ValidationOptions, validate_target, write_report
@@ -66,9 +66,17 @@ def _embed(args) -> int:
                "iterations": res.iterations, "factorizations": res.factorizations, "success": res.success,
                "seconds": res.seconds, "cpu_seconds": res.cpu_seconds}
     if args.summary is not None:
-        with atomic_path(args.summary) as tmp:
+        with atomic_output(args.summary) as tmp:
             tmp.write_text(json.dumps(summary, indent=1) + "\n")
     print(json.dumps(summary))
+    if not res.success:  # the exit code alone would leave the reader to decode the JSON
+        why = [f"{what}" for what, bad in (
+            (f"the Gauss-Newton iterations did not reach EmbedOptions.tol (edge-length error {res.edge_error_rms:.3g}"
+             f" rms, {res.edge_error_max:.3g} max)", not res.converged),
+            (f"{res.folded_faces} faces are folded", res.folded_faces > 0),
+            (f"{res.self_intersections} pairs of faces intersect", res.self_intersections > 0)) if bad]
+        print(f"shspec embed: the embedding failed: {'; '.join(why)}; {args.out} is written for inspection",
+              file=sys.stderr)
     return 0 if res.success else 1
 
 

@@ -14,10 +14,14 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from ..atomic import write_text
+from ..checks import real_array
+from ._common import whole_number
 from ..errors import InvalidArgumentError, OutputError
 from ..galerkin import HarmonicModel
 from .help_format import HelpFormatter
 from ..inverse.planning import plan_numeig
+from ..inverse.checkpoint import claim_checkpoint
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions
 from ..inverse.output import write_result
@@ -26,6 +30,7 @@ from ..inverse.schedule import (DEFAULT_STAGE_MAX_ITER, default_hop_degree, degr
 from ..targets import TARGET_SOURCES, Target, parse_target, read_spectrum
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.mesh_files import load_mesh
+from ..mesh.progress import mesh_progress
 from ..mesh.refine import eigenvalue_errors, trusted_numeig
 from ..pipeline.adaptive import AdaptiveOptions, adaptive_fit
 from ..parallel import make_executor
@@ -66,8 +71,8 @@ def read_initial(path: Path, model) -> np.ndarray:
             value = np.load(path, allow_pickle=False)
         else:
             value = np.loadtxt(path, ndmin=1)
-    except (OSError, KeyError, ValueError, TypeError) as exc:
-        raise InvalidArgumentError(f"cannot read a starting point from {path}: {exc}") from None
+    except (OSError, KeyError, ValueError, TypeError, EOFError) as exc:
+        raise InvalidArgumentError(f"cannot read a starting point from {path}: {exc or type(exc).__name__}") from None
     if isinstance(model, HarmonicModel):
         a = as_coefficients(value)
         if a.size > model.nparams and np.any(a[model.nparams:] != 0):
@@ -75,7 +80,7 @@ def read_initial(path: Path, model) -> np.ndarray:
         out = np.zeros(model.nparams)
         out[:min(a.size, out.size)] = a[:out.size]
         return out
-    value = np.asarray(value, dtype=float).ravel()
+    value = real_array(value, f"the starting point in {path}").ravel()
     if value.shape != (model.nparams,):
         raise InvalidArgumentError(f"{path} holds {value.size} values; the mesh model has {model.nparams} vertices")
     return value
@@ -97,11 +102,13 @@ def register(subparsers) -> None:
         description="Fit rho to a target spectrum from several random starts and write result.h5, summary.json "
         "and figures to DIR. The common case needs only --target and --out; the user guide explains the search.")
     p.add_argument("--target", required=True,
-                   help="blob | star:l,m,p | mesh:PATH or a shipped mesh (mesh:spot_600) | spectrum:FILE")
+                   help="blob | star:l,m,p | mesh:PATH or a shipped mesh (mesh:spot_600) | spectrum:FILE (text, "
+                   "CSV, .npy, .json; see the user guide)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
     p.add_argument("--model", choices=tuple(MODELS), default="harmonic", metavar="{harmonic,mesh}",
                    help="harmonic coefficients of rho, or per-vertex factors on the target's cMCF sphere")
-    p.add_argument("--lmax-factor", type=int, default=15, metavar="La", help="degree La of rho (harmonic model)")
+    p.add_argument("--lmax-factor", type=whole_number(1, "the degree La of rho; at 0 rho is constant, a round sphere"),
+                   default=15, metavar="La", help="degree La of rho (harmonic model)")
     p.add_argument("--lmax", type=int, default=None, metavar="Lb", help="basis degree Lb (default: planned for the target)")
     p.add_argument("--numeig", type=_numeig, default=None, metavar="K",
                    help="eigenvalues matched, lambda_0 included: an integer, 'auto' or 'all' (mesh targets) "
@@ -116,7 +123,8 @@ def register(subparsers) -> None:
                       help="run the starts on a Dask cluster (needs shspec[dask])")
     runs.add_argument("--checkpoint-every", type=int, default=d.checkpoint_every, metavar="N",
                       help="write DIR/checkpoint.h5 every N iterations (0: never)")
-    runs.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.h5")
+    runs.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.h5 (which must exist)")
+    runs.add_argument("--overwrite", action="store_true", help="discard the checkpoint of an earlier fit in DIR")
     runs.add_argument("--init", type=Path, default=None, metavar="FILE",
                       help="start from a result.h5, summary.json, .npy or text column")
     runs.add_argument("--quiet", action="store_true", help="no progress display")
@@ -256,6 +264,7 @@ def _fit(args) -> int:
     out: Path = args.out
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out} is a file; give a directory")
+    claim_checkpoint(out / "checkpoint.h5", resume=args.resume, overwrite=args.overwrite)
     auto = args.numeig == "auto"
     if args.numeig in ("auto", "all") and args.target.partition(":")[0] not in ("star", "mesh"):
         raise InvalidArgumentError(f"--numeig {args.numeig} needs a mesh target (star:... or mesh:...)")
@@ -268,13 +277,15 @@ def _fit(args) -> int:
         numeig = _auto_cap(args)
     elif numeig == "all":
         numeig = _mesh_size(args) - 1
-    target = parse_target(args.target, lmax=args.lmax, numeig=numeig, lmax_factor=args.lmax_factor,
-                          source=args.source, subdivisions=args.subdivisions)
+    with mesh_progress(not args.quiet):  # a large mesh target: its size, and progress through cMCF and eigenpairs
+        target = parse_target(args.target, lmax=args.lmax, numeig=numeig, lmax_factor=args.lmax_factor,
+                              source=args.source, subdivisions=args.subdivisions)
     if planned is not None and target.numeig < planned["numeig"]:
         print(f"warning: the target has only {target.numeig} eigenvalues; the plan asked for {planned['numeig']}",
               file=sys.stderr)
     if auto:
-        target, extra["numeig_auto"] = _auto_numeig(args, target)
+        with mesh_progress(not args.quiet):  # the 4-to-1 subdivision's eigenpairs
+            target, extra["numeig_auto"] = _auto_numeig(args, target)
     scheme, _, where = args.target.partition(":")
     if not args.allow_any_genus and scheme in ("spectrum", "mesh"):
         # the whole file, not only the K fitted: the heat trace needs many eigenvalues to be confident
@@ -312,7 +323,7 @@ def _fit(args) -> int:
     write_result(result, out)
     if extra:
         path = out / "summary.json"
-        path.write_text(json.dumps({**json.loads(path.read_text()), **extra}, indent=2) + "\n")
+        write_text(path, json.dumps({**json.loads(path.read_text()), **extra}, indent=2) + "\n")
     ident = result.identifiability()
     print(("warning: " if ident.underdetermined else "") + ident.statement(), file=sys.stderr)
     best = result.best

@@ -10,15 +10,18 @@ import time
 import warnings
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 from .._version import __version__
-from ..atomic import atomic_hdf5, atomic_path
+from ..atomic import atomic_output, save_figure, write_text
+from ._common import CACHE_DIR_HELP
 from .help_format import HelpFormatter
 from ..errors import BandLimitError, InvalidArgumentError, TruncationWarning
 from ..galerkin.convergence import convergence, convergence_in_factor
 from ..mesh.factor_spectrum import pl_spectrum_of_factor
 from ..galerkin.solver import MAX_BASIS_DEGREE, spectrum
+from ..gaunt.cache import list_tables
 from ..outputs import ensure_directory, write_csv
 from ..sphere.harmonics import check_degree
 from ._rho import RHO_HELP, parse_rho
@@ -38,7 +41,7 @@ def register(sub) -> None:
     p.add_argument("--numeig", type=int, default=36, help="number of eigenvalues K (lambda_0 = 0 included)")
     p.add_argument("--out", help="save the spectrum with its parameters to this .json or .h5 file")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
-    p.add_argument("--cache-dir", help="Gaunt table cache (default: $SHSPEC_CACHE, else ~/.cache/shspec)")
+    p.add_argument("--cache-dir", help=CACHE_DIR_HELP)
     p.set_defaults(func=run_forward)
 
     c = sub.add_parser(
@@ -58,7 +61,7 @@ def register(sub) -> None:
     c.add_argument("--numeig", type=int, default=36, help="eigenvalues per spectrum")
     c.add_argument("--pl-subdivisions", type=int, default=None, help="icosphere subdivisions for the PL spectrum")
     c.add_argument("--out", default="convergence", help="output folder")
-    c.add_argument("--cache-dir", help="Gaunt table cache")
+    c.add_argument("--cache-dir", help=CACHE_DIR_HELP)
     c.set_defaults(func=run_convergence)
 
 
@@ -98,6 +101,18 @@ def _status(message: str, after: float = 1.0):
         timer.cancel()
 
 
+def _working_message(args, rho) -> str:
+    """What a slow forward run is doing: building a table only when none covering its band limits is cached (the
+    notice used to promise a one-time wait on every slow run)."""
+    la = rho.lmax if args.lmax_factor is None else args.lmax_factor
+    covered = any(info.problem is None and info.lmax >= args.lmax and info.lmax_factor >= min(la, 2 * args.lmax)
+                  for info in list_tables(args.cache_dir))
+    if covered:
+        return "shspec forward: working..."
+    return ("shspec forward: working... (building the Gaunt table for these band limits, once per cache; a first "
+            "run also compiles shspec's numba kernels)")
+
+
 def _number(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
 
@@ -109,9 +124,7 @@ def run_forward(args) -> int:
         raise InvalidArgumentError(f"--out must end in .json or .h5, got {Path(args.out).name}")
     rho = parse_rho(args.rho, args.lmax_factor if args.lmax_factor is not None else args.lmax)
     start = time.perf_counter()
-    with warnings.catch_warnings(record=True) as caught, _status(
-            "shspec forward: working... (the first run compiles shspec's numba kernels and builds the Gaunt table "
-            "for these band limits: about half a minute, once)"):
+    with warnings.catch_warnings(record=True) as caught, _status(_working_message(args, rho)):
         warnings.simplefilter("always", TruncationWarning)
         res = spectrum(rho, lmax=args.lmax, k=args.numeig, lmax_factor=args.lmax_factor, cache_dir=args.cache_dir)
     for w in caught:
@@ -149,8 +162,13 @@ def run_forward(args) -> int:
         print(line)
     if exact is not None:
         print(f"max relative error against the exact spectrum: {record['max_relative_error_vs_exact']:.2e}")
-    print(f"estimated truncation error (relative): rho cut at La {res.truncation.factor:.1e}, basis (Lb-2 to Lb) "
-          f"{res.truncation.basis:.1e}; degrees above rho's own, extrapolated {res.truncation.unresolved:.1e}")
+    t = res.truncation
+    if all(np.isfinite([t.factor, t.basis, t.unresolved])):
+        print(f"estimated truncation error (relative): rho cut at La {t.factor:.1e}, basis (Lb-2 to Lb) "
+              f"{t.basis:.1e}; degrees above rho's own, extrapolated {t.unresolved:.1e}")
+    else:  # relative to lambda_0 = 0 alone (K = 1) there is nothing to estimate
+        print("estimated truncation error: not estimated (it is relative to the nonzero eigenvalues; ask for "
+              "--numeig 2 or more)")
     if args.out:
         print(f"saved to {args.out}")
     return 0
@@ -159,10 +177,10 @@ def run_forward(args) -> int:
 def _save(path: Path, record: dict, vectors: np.ndarray) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".json":
-        with atomic_path(path) as tmp:
+        with atomic_output(path) as tmp:
             tmp.write_text(json.dumps(record, indent=1))
     elif path.suffix.lower() in (".h5", ".hdf5"):
-        with atomic_hdf5(path) as f:
+        with atomic_output(path, hdf5=True) as tmp, h5py.File(tmp, "w") as f:
             f["eigenvalues"] = np.asarray(record["eigenvalues"])
             f["eigenvectors"] = vectors
             f["rho_coefficients"] = np.asarray(record["rho_coefficients"])
@@ -206,12 +224,14 @@ def run_convergence(args) -> int:
         study.plot_spectra(axes[1])
         axes[0].set_title(f"{rho.name}: convergence in {study.parameter}")
         fig.tight_layout()
-        fig.savefig(out / f"convergence_{study.parameter}.png", dpi=120)
-        plt.close(fig)
+        try:
+            save_figure(fig, out / f"convergence_{study.parameter}.png", dpi=120)
+        finally:
+            plt.close(fig)
         finite = rates[~np.isnan(rates)]
         print(f"{study.parameter}: values {study.values.tolist()}; largest change at the coarsest "
               f"{rows[0]['max_relative_change']:.2e}, next-to-finest {rows[-2]['max_relative_change']:.2e}; "
               f"median exponential rate {np.median(finite) if finite.size else float('nan'):.3f} per degree")
-    (out / "convergence.json").write_text(json.dumps(summary, indent=1))
+    write_text(out / "convergence.json", json.dumps(summary, indent=1))
     print(f"wrote {out}/convergence.json, CSV and PNG files")
     return 0

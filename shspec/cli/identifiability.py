@@ -60,6 +60,10 @@ def _reference(text: str, la: int, lb: int) -> np.ndarray:
         return random_centred_coefficients(seed, la, 0.2)
     if text == "blob":
         return blob_factor(max(la, 6)).truncated(la).coefficients
+    if text.partition(":")[0] not in ("star", "mesh"):
+        # parse_target would also take (and its message offer) spectrum:FILE, which has no rho to analyse
+        raise InvalidArgumentError(f"unknown reference {text!r}: use blob, random:SEED, star:l,m,p or mesh:PATH "
+                                   "(identifiability analyses a known rho; a spectrum file has none)")
     target = parse_target(text, lmax=lb, numeig=2, lmax_factor=la)
     if target.truth is None:
         raise InvalidArgumentError(f"{text} has no known rho; use blob, random:SEED, star:... or mesh:...")

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_output, save_figure, write_text
 from ..errors import InvalidArgumentError
 from ..outputs import ensure_directory
 from ..mesh.cmcf import CMCFOptions, cmcf
@@ -16,6 +17,7 @@ from ..mesh.mesh_files import load_mesh, save_mesh
 from ..mesh.plot import plot_hammer
 from ..parallel import make_executor
 from ..spectral.batch import run_batch
+from ..spectrum_file import SPECTRUM_SUFFIXES, write_spectrum
 
 
 def register(subparsers) -> None:
@@ -32,7 +34,8 @@ def register(subparsers) -> None:
     p.add_argument("--numeig", type=int, default=20, metavar="K", help="number of eigenvalues (default 20)")
     p.add_argument("--mass", choices=MASS_KINDS, default="lumped", help="mass matrix (default lumped)")
     p.add_argument("--json", action="store_true", help="print one JSON object with key 'eigenvalues' (one mesh)")
-    p.add_argument("--out", type=Path, metavar="DIR", help="write files per mesh and spectra.csv to DIR (created)")
+    p.add_argument("--out", type=Path, metavar="DIR", help="write files per mesh and spectra.csv to DIR (created); "
+                   "for a single mesh, a file path ending in .txt, .csv, .json or .npy writes its spectrum there")
     p.add_argument("--descriptors", action="store_true", help="with --out: also NAME.shapedna.txt (eigenvalue * "
                    "area), NAME.heat_trace.txt (t, Z(t)) and NAME.hks.txt (heat kernel signature per vertex)")
     p.add_argument("--topology", action="store_true", help="with --out: also NAME.topology.json (Euler "
@@ -59,6 +62,18 @@ def register(subparsers) -> None:
 
 
 def _mesh_spectrum(args) -> int:
+    if args.out is not None and args.out.suffix.lower() in SPECTRUM_SUFFIXES and not args.out.is_dir():
+        # one mesh into one file (the round trip into 'fit --target spectrum:FILE'), not a folder named s.txt
+        if len(args.paths) != 1 or args.descriptors or args.topology or args.workers or args.scheduler:
+            raise InvalidArgumentError(f"--out {args.out} is a spectrum file, for a single mesh; several meshes, "
+                                       "--descriptors, --topology, --workers and --scheduler need --out DIR")
+        mesh = load_mesh(args.paths[0], require_genus0=False)
+        spec = mesh_spectrum(mesh, args.numeig, args.mass)
+        ensure_directory(args.out.parent)
+        write_spectrum(args.out, spec.eigenvalues, f"first {spec.eigenvalues.size} cotan Laplace-Beltrami "
+                       f"eigenvalues of {args.paths[0]} ({args.mass} mass), ascending, 1/area; area "
+                       f"{mesh.area():.17g}")
+        return 0
     if args.out is not None:
         with make_executor(args.workers, args.scheduler) as executor:
             run_batch(args.paths, args.out, args.numeig, mass=args.mass, descriptors=args.descriptors,
@@ -89,8 +104,9 @@ def _cmcf(args) -> int:
     result = cmcf(mesh, CMCFOptions(tol=args.tol, max_iter=args.max_iter, center=not args.no_center))
     out = ensure_directory(args.out)
     save_mesh(result.sphere, out / "sphere.obj")
-    np.savetxt(out / "factors.txt", result.factors, fmt="%.17g",
-               header="conformal factor per vertex: input vertex area / sphere vertex area")
+    with atomic_output(out / "factors.txt") as tmp:
+        np.savetxt(tmp, result.factors, fmt="%.17g",
+                   header="conformal factor per vertex: input vertex area / sphere vertex area")
     summary = {
         "input": str(args.path), "tol": args.tol, "max_iter": args.max_iter, "center": not args.no_center,
         "nvertices": mesh.nvertices, "roundness": result.roundness,
@@ -99,10 +115,12 @@ def _cmcf(args) -> int:
         "centering_residual": None if np.isnan(result.centering_residual) else result.centering_residual,
         "success": result.success,
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     fig = plot_hammer(result.sphere, result.factors, log=True, title=f"{args.path.name}: conformal factors",
                       label="factor (log scale)")
-    fig.savefig(out / "factors.png", dpi=120, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        save_figure(fig, out / "factors.png", dpi=120, bbox_inches="tight")
+    finally:
+        plt.close(fig)
     print(json.dumps(summary))
     return 0 if result.success else 1

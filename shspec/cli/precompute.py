@@ -16,6 +16,7 @@ import argparse
 import sys
 import time
 
+from ._common import CACHE_DIR_HELP, whole_number
 from ..errors import ShspecError
 from ..gaunt.cache import (cache_dir_source, get_table, list_tables, list_temporary_files, load_table,
                            remove_stale_files, verify_table)
@@ -60,9 +61,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="what to do (default build)")
     p.add_argument("--lmax", type=_band_limit, help="basis band limit Lb (the basis has (Lb+1)^2 functions)")
     p.add_argument("--lmax-factor", type=_band_limit, help="band limit La of rho, at most 2*Lb")
-    p.add_argument("--cache-dir", help="cache directory (default: $SHSPEC_CACHE, else ~/.cache/shspec)")
+    p.add_argument("--cache-dir", help=CACHE_DIR_HELP)
     p.add_argument("--force", action="store_true", help="rebuild even if a valid table is cached")
-    p.add_argument("--samples", type=_band_limit, default=2000, help="entries to check with 'verify' (default 2000)")
+    p.add_argument("--samples", type=whole_number(1), default=2000, help="entries to check with 'verify' (default 2000)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
 from ..errors import InvalidArgumentError
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.mesh_files import load_mesh
-from ..spectral.spectrum_files import read_eigenvalues
+from ..mesh.progress import mesh_progress
+from ..spectrum_file import read_spectrum_file
 from ..spectral.topology import MIN_EIGENVALUES, estimate_topology
 
 #: Default K of mesh targets: enough for a ~10k-vertex mesh (measured: docs, benchmarks page), at most n/5 so that
@@ -22,31 +25,37 @@ def register(subparsers) -> None:
         description="Fit the heat trace Z(t) = sum exp(-lambda t) ~ A/(4 pi t) + chi/6 + a1 t + ... of a spectrum "
         "over windows of t tied to its largest eigenvalue and print the Euler characteristic chi with its "
         "uncertainty, the genus with a confidence statement, and the area (known or fitted).")
-    p.add_argument("--target", required=True, help="spectrum:FILE (text with one eigenvalue per line or two "
-                   "columns index, eigenvalue; .npy; .json) or mesh:PATH (its cotan spectrum, any genus)")
+    p.add_argument("--target", required=True, help="spectrum:FILE (text or CSV: one eigenvalue per line, index and "
+                   "eigenvalue, index, eigenvalue and error, or columns named in a header; .npy; .json; see "
+                   "shspec.spectrum_file) or mesh:PATH (its cotan spectrum, any genus)")
     p.add_argument("--area", type=float, help="the surface area, if known (mesh targets: the mesh's area)")
     p.add_argument("--numeig", type=int, metavar="K", help="eigenvalues used, lambda_0 = 0 included (spectrum: all "
                    f"by default; mesh: min({DEFAULT_MESH_NUMEIG}, vertices/5))")
-    p.add_argument("--noise", type=float, default=0.0, metavar="EPS",
-                   help="relative noise of each eigenvalue, propagated into the uncertainty (default 0)")
+    p.add_argument("--noise", type=float, default=None, metavar="EPS",
+                   help="relative noise of each eigenvalue, propagated into the uncertainty (default: the largest "
+                   "relative error of a spectrum file's error column, else 0)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--quiet", action="store_true", help="no size estimate or progress bar for large meshes")
     p.set_defaults(func=_topology)
 
 
 def _topology(args) -> int:
     kind, _, arg = args.target.partition(":")
-    area = args.area
+    area, noise = args.area, args.noise
     if kind == "spectrum" and arg:
-        lam = read_eigenvalues(arg)
-        numeig = args.numeig
+        spectrum = read_spectrum_file(arg)
+        lam, numeig = spectrum.eigenvalues, args.numeig
+        if noise is None and spectrum.errors is not None:
+            noise = float(np.max(spectrum.errors[1:] / lam[1:]))
     elif kind == "mesh" and arg:
         mesh = load_mesh(arg, require_genus0=False)
         numeig = args.numeig or min(DEFAULT_MESH_NUMEIG, max(MIN_EIGENVALUES, mesh.nvertices // 5))
-        lam = mesh_spectrum(mesh, numeig).eigenvalues[:numeig]
+        with mesh_progress(not args.quiet):
+            lam = mesh_spectrum(mesh, numeig).eigenvalues[:numeig]
         area = mesh.area() if area is None else area
     else:
         raise InvalidArgumentError(f"unknown target {args.target!r}: use spectrum:FILE or mesh:PATH")
-    est = estimate_topology(lam, area, numeig=numeig, relative_noise=args.noise)
+    est = estimate_topology(lam, area, numeig=numeig, relative_noise=0.0 if noise is None else noise)
     if args.json:
         print(json.dumps({"target": args.target, **est.to_dict()}))
         return 0

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..checks import check_int
+from ..checks import check_float, check_int
 from ..errors import InvalidArgumentError
 from ..mesh.triangle_mesh import TriangleMesh
 
@@ -83,13 +83,9 @@ class EmbedOptions:
             value = getattr(self, name)
             check_int(value, f"EmbedOptions.{name}", minimum=1)
         for name in ("max_log_step", "continuation_strain", "tol", "strain_tol", "damping", "ridge", "cg_tol"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise InvalidArgumentError(f"EmbedOptions.{name} must be finite and > 0, got {value!r}")
+            check_float(getattr(self, name), f"EmbedOptions.{name}", positive=True)
         for name in ("pressure", "smoothing"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                raise InvalidArgumentError(f"EmbedOptions.{name} must be finite and >= 0, got {value!r}")
+            check_float(getattr(self, name), f"EmbedOptions.{name}", minimum=0.0)
         if not (np.isfinite(self.min_step) and 0 < self.min_step <= 1):
             raise InvalidArgumentError(f"EmbedOptions.min_step must be in (0, 1], got {self.min_step!r}")
         if self.min_damping is not None and not (np.isfinite(self.min_damping) and 0 < self.min_damping):

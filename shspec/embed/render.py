@@ -11,7 +11,8 @@ __all__ = ["render_mesh"]
 
 
 def render_mesh(mesh: TriangleMesh, *, ax=None, view: tuple[float, float] = (20.0, -60.0), color="#b0c4de",
-                values=None, cmap: str = "viridis", title: str | None = None, up: str = "z"):
+                values=None, cmap="viridis", title: str | None = None, up: str = "z", vmin: float | None = None,
+                vmax: float | None = None):
     """Draw a triangle mesh with Lambert shading from a light at the camera.
 
     Parameters
@@ -24,10 +25,14 @@ def render_mesh(mesh: TriangleMesh, *, ax=None, view: tuple[float, float] = (20.
         Camera elevation and azimuth in degrees (matplotlib's convention).
     color : matplotlib colour
         Base colour when ``values`` is None.
-    values : (n,) array, optional
-        Per-vertex values coloured with ``cmap`` (face colour: the mean of its vertices).
-    cmap : str
+    values : (n,) or (m,) array, optional
+        Per-vertex values coloured with ``cmap`` (face colour: the mean of its vertices), or per-face values
+        (categories, which a mean would blend into another category).
+    cmap : str or matplotlib Colormap
         Colormap of ``values``.
+    vmin, vmax : float, optional
+        Values at the ends of the colormap (default: the faces' own range), so that a colour means the same
+        value in every figure (a category, say).
     title : str, optional
     up : {"x", "y", "z"}
         Axis of the mesh drawn vertically (the bunny's is "y").
@@ -58,10 +63,13 @@ def render_mesh(mesh: TriangleMesh, *, ax=None, view: tuple[float, float] = (20.
         base = np.tile(to_rgb(color), (mesh.nfaces, 1))
     else:
         f = np.asarray(values, dtype=float)
-        if f.shape != (mesh.nvertices,) or not np.all(np.isfinite(f)):
-            raise InvalidArgumentError(f"values must be a finite array of shape ({mesh.nvertices},)")
-        fv = f[mesh.faces].mean(axis=1)
-        base = colormaps[cmap](Normalize(fv.min(), fv.max())(fv))[:, :3]
+        if f.shape not in ((mesh.nvertices,), (mesh.nfaces,)) or not np.all(np.isfinite(f)):
+            raise InvalidArgumentError(f"values must be a finite array of shape ({mesh.nvertices},) or "
+                                       f"({mesh.nfaces},)")
+        fv = f[mesh.faces].mean(axis=1) if f.shape == (mesh.nvertices,) else f
+        colours = colormaps[cmap] if isinstance(cmap, str) else cmap
+        norm = Normalize(fv.min() if vmin is None else vmin, fv.max() if vmax is None else vmax)
+        base = colours(norm(fv))[:, :3]
     if ax is None:
         fig = plt.figure(figsize=(5, 5))
         ax = fig.add_subplot(projection="3d")

@@ -244,6 +244,9 @@ class HarmonicModel(SpectralModel):
         The quadratic forms come from the exact GLQ quadrature (:mod:`shspec.galerkin.gridforms`), equal to the
         Gaunt-table contraction to rounding and 6-20× faster than it at the sizes of a fit
         (``benchmarks/bench_iteration.py``)."""
+        if not isinstance(spec, Spectrum):
+            raise InvalidArgumentError(f"jacobian needs the Spectrum of a solve (model.spectrum(...)), got "
+                                       f"{type(spec).__name__}")
         q = self.grid_forms(spec.eigenvectors)
         return -(q * spec.eigenvalues[None, :]).T
 

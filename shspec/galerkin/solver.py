@@ -21,6 +21,7 @@ import warnings
 
 import numpy as np
 
+from ..checks import check_float, real_array
 from ..errors import InvalidArgumentError, NotPositiveError, ShspecError, TruncationWarning
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
 from ..sphere.factor import ConformalFactor, as_factor
@@ -72,8 +73,8 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
     factor = _as_input_factor(rho)
     la = factor.lmax if lmax_factor is None else check_degree(lmax_factor, "lmax_factor")
     lmax = check_degree(lmax, "lmax", minimum=1, maximum=MAX_BASIS_DEGREE)
-    if truncation_tol is not None and not (np.isfinite(truncation_tol) and truncation_tol > 0):
-        raise InvalidArgumentError(f"truncation_tol must be None or finite and > 0, got {truncation_tol!r}")
+    if truncation_tol is not None:
+        truncation_tol = check_float(truncation_tol, "truncation_tol (None or finite and > 0)", positive=True)
     # degrees above 2·Lb do not couple two basis functions: dropping them changes nothing
     # the positivity of the cut factor is checked below (with the cause in the message): the model need not again
     model = HarmonicModel(lmax, min(la, 2 * lmax), table=table, cache_dir=cache_dir, build=build,
@@ -100,6 +101,8 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
 
 
 def _as_input_factor(rho) -> ConformalFactor:
+    if isinstance(rho, (str, bytes, list, tuple, np.ndarray)):
+        real_array(rho, "rho")  # named as the argument it is, not as the coefficients inside a factor
     try:
         return as_factor(rho)
     except ShspecError:
@@ -141,8 +144,11 @@ def _truncation_cause(factor: ConformalFactor, la: int) -> str:
         else:
             return (f". The given rho (degree {factor.lmax}) is positive: cutting it at La = {la} made it negative; "
                     f"raise lmax_factor (at most 2*lmax)")
-    tail = tail_bound(factor.coefficients, factor.lmax)
     mean = factor.area / (4 * np.pi)
+    if not mean > 0:  # a zero or negative mean is no truncation artefact: no positive function has it
+        return (f". Its mean value is {mean:.3g}: no positive rho has a mean <= 0, so this is not the truncation of "
+                "a positive function; a metric needs rho > 0 everywhere")
+    tail = tail_bound(factor.coefficients, factor.lmax)
     if not tail < 0.01 * mean:
         return (f". Its coefficients have not decayed at their last degree {factor.lmax} (the part above it is "
                 f"estimated at {tail:.3g}, against a mean of {mean:.3g}): this is probably the truncation of a "

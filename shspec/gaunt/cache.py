@@ -89,6 +89,9 @@ def cache_dir_source(path: str | os.PathLike | None = None) -> tuple[Path, str]:
     """The cache directory and why it is that one (``"--cache-dir"``, ``"$SHSPEC_CACHE"``, ``"checkout <folder>"``
     or ``"user cache"``)."""
     if path is not None:
+        if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+            # '' would put the tables into the current folder, unasked
+            raise CacheLocationError(f"the cache directory must be a non-empty path, got {path!r}")
         return Path(path), "--cache-dir"
     env = os.environ.get("SHSPEC_CACHE")
     if env:

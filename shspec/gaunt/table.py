@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
+from ..checks import real_array
 from ..errors import BandLimitError, InvalidArgumentError
 from ..resources import Need
 from ..sphere.harmonics import check_degree, ncoeffs
@@ -323,6 +324,7 @@ class GauntTable:
         self.lmax, self.lmax_factor = check_limits(self.lmax, self.lmax_factor)
         self.offsets = _block_offsets(self.lmax, self.lmax_factor)
         expected = int(self.offsets[self.lmax, self.lmax + 1])
+        self.values = real_array(self.values, "a Gaunt table's values")
         if self.values.shape != (expected,):
             raise InvalidArgumentError(
                 f"a ({self.lmax},{self.lmax_factor}) Gaunt table holds {expected} values, got shape {self.values.shape}"

@@ -21,14 +21,14 @@ import numpy as np
 import scipy
 
 from .._version import __version__
-from ..atomic import atomic_hdf5
+from ..atomic import atomic_output
 from ..errors import CheckpointError
 from .options import FitOptions
 from .problem import StartProgress
 from .results import StartResult
 
-__all__ = ["fingerprint", "save_checkpoint", "load_checkpoint", "save_result", "load_result_summary",
-           "CHECKPOINT_FORMAT"]
+__all__ = ["fingerprint", "save_checkpoint", "load_checkpoint", "describe_checkpoint", "claim_checkpoint",
+           "save_result", "load_result_summary", "CHECKPOINT_FORMAT"]
 
 #: Format version of checkpoints and result files.
 CHECKPOINT_FORMAT = 1
@@ -91,14 +91,16 @@ def _content_checksum(f: h5py.File) -> str:
 
 
 def _atomic(path: Path, write) -> None:
-    """Write an HDF5 file through ``write(f)`` atomically (:func:`shspec.atomic.atomic_hdf5`), with its checksum."""
+    """Write an HDF5 file through ``write(f)`` atomically (:func:`shspec.atomic.atomic_output`), with its checksum;
+    a full disk or a read-only folder is one CheckpointError naming the file (the previous one intact)."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_hdf5(path) as f:
+    except OSError as exc:
+        raise CheckpointError(f"cannot write {path}: cannot create its folder: {exc.strerror or exc}") from exc
+    with atomic_output(path, error=CheckpointError, hdf5=True) as tmp:
+        with h5py.File(tmp, "w") as f:
             write(f)
             f.attrs["checksum"] = _content_checksum(f)
-    except OSError as exc:
-        raise CheckpointError(f"cannot write {path}: {exc}") from exc
 
 
 def _open_checked(path, what: str) -> h5py.File:
@@ -175,6 +177,65 @@ def load_checkpoint(path, fp: str):
     except Exception as exc:
         raise CheckpointError(f"cannot read the checkpoint {path}: {exc}") from exc
     return finished, progress
+
+
+def describe_checkpoint(path) -> str:
+    """What a checkpoint holds, in words: the finished starts, and the running start's stage and history rows.
+
+    Raises
+    ------
+    CheckpointError
+        If the file is unreadable or damaged.
+    """
+    f = _open_checked(path, "checkpoint")
+    try:
+        with f:
+            finished = sorted(int(k) for k in f["finished"]) if "finished" in f else []
+            text = f"{len(finished)} finished start{'s' if len(finished) != 1 else ''}"
+            if finished:
+                text += f" ({', '.join(map(str, finished))})"
+            if "current" in f:
+                c = f["current"]
+                text += (f"; start {int(c.attrs['index'])} running at stage {int(c.attrs['stage'])} with "
+                         f"{c['history'].shape[0]} history rows")
+    except Exception as exc:
+        raise CheckpointError(f"cannot read the checkpoint {path}: {exc}") from exc
+    return text
+
+
+def claim_checkpoint(path, *, resume: bool, overwrite: bool) -> None:
+    """Check, before a fit writes into a folder, that its checkpoint ``path`` is used as the user meant.
+
+    A fit without ``resume`` must not silently replace the checkpoint of another, unfinished run: it is refused
+    (saying what the checkpoint holds) unless ``overwrite``, which removes it.  With ``resume`` the checkpoint must
+    exist: starting from scratch instead would hide a mistyped folder.
+
+    Raises
+    ------
+    CheckpointError
+        If ``resume`` and there is no checkpoint, or a checkpoint exists and neither ``resume`` nor ``overwrite``.
+    """
+    path = Path(path)
+    if resume and overwrite:
+        raise CheckpointError("--resume continues the checkpoint and --overwrite discards it: give one of them")
+    if resume:
+        if not path.is_file():
+            raise CheckpointError(f"nothing to resume: there is no checkpoint {path} (a fit writes one with "
+                                  "--checkpoint-every N); run without --resume to start a new fit")
+        return
+    if not path.exists():
+        return
+    if not overwrite:
+        try:
+            held = describe_checkpoint(path)
+        except CheckpointError as exc:
+            held = f"unreadable: {exc}"
+        raise CheckpointError(f"{path.parent} holds the checkpoint of an earlier fit ({held}); continue it with "
+                              "--resume, or discard it with --overwrite")
+    try:
+        path.unlink()
+    except OSError as exc:
+        raise CheckpointError(f"cannot remove the old checkpoint {path}: {exc.strerror or exc}") from exc
 
 
 def save_result(path, result) -> Path:

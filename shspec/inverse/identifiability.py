@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ..checks import check_float, check_int
+from ..checks import check_float, check_int, finite_array
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..spectral_model import SpectralModel
 from .parametrization import Parametrization
@@ -282,9 +282,7 @@ def isospectral_point(model: SpectralModel, params, direction, numeig: int, *, t
     p, numeig, rank_tol, spec = _checked(model, params, numeig, rank_tol)
     tol = check_float(tol, "tol", positive=True)
     max_iter = check_int(max_iter, "max_iter", minimum=1)
-    step = np.asarray(direction, dtype=float)
-    if step.shape != p.shape or not np.all(np.isfinite(step)):
-        raise InvalidArgumentError(f"direction must be a finite array of shape {p.shape}, got shape {step.shape}")
+    step = finite_array(direction, "direction", p.shape)
     par = Parametrization.at(p, model.free_parameters(False), model.transform)
     fixed = np.ones(p.size, dtype=bool)
     fixed[par.free] = False

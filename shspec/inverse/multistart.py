@@ -146,22 +146,25 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
         for i in range(options.starts):
             if i in done:
                 continue
-            if current is None or current.index != i:
-                current = StartProgress(i, 0, problem.initial(np.random.default_rng([options.seed, i]), i), None)
+            # the whole step is guarded: an interrupt (Ctrl-C, SIGTERM) between two starts keeps the finished ones too
             try:
+                if current is None or current.index != i:
+                    current = StartProgress(i, 0, problem.initial(np.random.default_rng([options.seed, i]), i),
+                                            None)
                 finished.append(run_start(problem, current, checkpoint if options.checkpoint_path else None))
+                current = None
+                if options.checkpoint_path and options.checkpoint_every:
+                    checkpoint(None)
             except KeyboardInterrupt:
                 interrupted = True
                 if options.checkpoint_path:
                     save_checkpoint(options.checkpoint_path, fp, finished, current)
-                if current.params is not None:
+                running = current is not None and current.index not in {r.index for r in finished}
+                if running and current.params is not None:
                     finished.append(current.result("interrupted", current.seconds, options.success_tol))
                 if options.progress:
                     print("\ninterrupted: the best state so far is kept", file=sys.stderr)
                 break
-            current = None
-            if options.checkpoint_path and options.checkpoint_every:
-                checkpoint(None)
     if not finished:
         raise KeyboardInterrupt
     finished.sort(key=lambda r: r.index)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..checks import check_float, check_int
+from ..checks import check_choice, check_float, check_int
 from ..errors import InvalidArgumentError
 from .schedule import Stage
 
@@ -173,12 +173,10 @@ class FitOptions:
     progress: bool = False
 
     def __post_init__(self):
-        if self.optimizer is not None and self.optimizer not in OPTIMIZERS:
-            raise InvalidArgumentError(f"optimizer must be one of {OPTIMIZERS}, got {self.optimizer!r}")
-        if self.weights not in WEIGHTINGS:
-            raise InvalidArgumentError(f"weights must be one of {WEIGHTINGS}, got {self.weights!r}")
-        if self.area not in AREA_MODES:
-            raise InvalidArgumentError(f"area must be one of {AREA_MODES}, got {self.area!r}")
+        if self.optimizer is not None:
+            check_choice(self.optimizer, "optimizer", OPTIMIZERS)
+        check_choice(self.weights, "weights", WEIGHTINGS)
+        check_choice(self.area, "area", AREA_MODES)
         if self.schedule is not None and (not isinstance(self.schedule, tuple)
                                           or not all(isinstance(s, Stage) for s in self.schedule)):
             raise InvalidArgumentError("schedule must be None (the model's default) or a tuple of Stage")

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from ..atomic import save_figure, write_text
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..outputs import ensure_directory
 from . import plots
@@ -73,7 +74,7 @@ def write_result(result: FitResult, directory, *, figures: bool = True) -> Path:
     """
     out = ensure_directory(directory)
     save_result(out / "result.h5", result)
-    (out / "summary.json").write_text(json.dumps(summary(result), indent=2) + "\n")
+    write_text(out / "summary.json", json.dumps(summary(result), indent=2) + "\n")
     result.model.write_files(result.best.params, out)
     if figures:
         import matplotlib.pyplot as plt
@@ -85,6 +86,8 @@ def write_result(result: FitResult, directory, *, figures: bool = True) -> Path:
             pass  # the alignment could not be made; summary.json says why
         figs.update(result.model.figures(result.best.params, result.target))
         for name, fig in figs.items():
-            fig.savefig(out / name, dpi=110)
-            plt.close(fig)
+            try:
+                save_figure(fig, out / name, dpi=110)
+            finally:
+                plt.close(fig)
     return out

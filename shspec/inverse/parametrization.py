@@ -41,8 +41,11 @@ class Parametrization:
     def __post_init__(self):
         base = np.array(self.base, dtype=float)
         free = np.asarray(self.free, dtype=np.int64)
-        if base.ndim != 1 or not np.all(np.isfinite(base)):
-            raise InvalidArgumentError(f"the base variables must be a finite (n,) array, got shape {base.shape}")
+        if base.ndim != 1:
+            raise InvalidArgumentError(f"the base variables must be an (n,) array, got shape {base.shape}")
+        bad = np.flatnonzero(~np.isfinite(base))
+        if bad.size:
+            raise InvalidArgumentError(f"the base variables must be finite; entry {bad[0]} is {base[bad[0]]}")
         if free.ndim != 1 or free.size == 0 or np.any(free < 0) or np.any(free >= base.size) \
                 or np.any(np.diff(free) <= 0):
             raise InvalidArgumentError("free must be a non-empty ascending array of distinct variable indices")

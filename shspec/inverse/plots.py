@@ -11,7 +11,10 @@ from ..errors import InvalidArgumentError
 from ..sphere.factor import ConformalFactor
 from .results import FitResult
 
-__all__ = ["plot_factors", "plot_history", "plot_residuals"]
+__all__ = ["plot_factors", "plot_history", "plot_residuals", "RESIDUAL_FLOOR"]
+
+#: Relative residuals below this (a few ulps of double precision) are drawn at it, marked as rounding.
+RESIDUAL_FLOOR = 1e-15
 
 
 def _check(result) -> FitResult:
@@ -64,20 +67,29 @@ def plot_factors(result: FitResult, aligned=None):
 
 
 def plot_history(result: FitResult):
-    """Energy and max relative residual against iteration, one line per start; dotted lines mark where a stage
-    (or a basin hop's refit) begins."""
+    """Energy and max relative residual against iteration, one line per start and stage: stages match different
+    numbers of eigenvalues, so their energies are not joined; a dotted line, labelled with the stage, marks where a
+    stage (or a basin hop's refit) begins."""
     import matplotlib.pyplot as plt
 
     result = _check(result)
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
-    for r in result.starts:
+    labelled = set()
+    for n, r in enumerate(result.starts):
         h = r.history
+        colour = f"C{n % 10}"
+        starts = np.concatenate([[0], np.flatnonzero(np.diff(h[:, 0]) != 0) + 1, [h.shape[0]]])
         for ax, col in zip(axes, (1, 2)):
-            line, = ax.semilogy(np.arange(h.shape[0]), np.maximum(h[:, col], 1e-300), label=f"start {r.index}")
-            # a new stage starts where the stage column changes: dotted verticals in the start's colour
-            for it in np.flatnonzero(np.diff(h[:, 0]) != 0) + 1:
-                ax.axvline(it, color=line.get_color(), ls=":", lw=0.8, alpha=0.6)
-    axes[0].set_ylabel("energy")
+            for j, (a, b) in enumerate(zip(starts[:-1], starts[1:])):
+                ax.semilogy(np.arange(a, b), np.maximum(h[a:b, col], 1e-300), color=colour,
+                            label=f"start {r.index}" if j == 0 else None)
+                if a > 0:
+                    ax.axvline(a, color=colour, ls=":", lw=0.8, alpha=0.6)
+                if (ax, a, int(h[a, 0])) not in labelled:  # starts that change stage together share one label
+                    labelled.add((ax, a, int(h[a, 0])))
+                    ax.annotate(_stage_label(result, int(h[a, 0])), (a, 1.0), xycoords=("data", "axes fraction"),
+                                xytext=(2, -3), textcoords="offset points", fontsize=7, color="0.3", va="top")
+    axes[0].set_ylabel("energy (each stage its own eigenvalues: not joined)")
     axes[1].set_ylabel("max |λ−λ*|/λ*")
     for ax in axes:
         ax.set_xlabel("iteration (all stages)")
@@ -85,6 +97,17 @@ def plot_history(result: FitResult):
     axes[0].legend(fontsize="small")
     fig.tight_layout()
     return fig
+
+
+def _stage_label(result: FitResult, stage: int) -> str:
+    """'stage 2: La 4, K 25' when the schedule is known, else 'stage 2' (an automatic schedule, or a hop's refit)."""
+    schedule = result.options.schedule
+    if schedule and 0 <= stage < len(schedule):
+        s = schedule[stage]
+        parts = [f"La {s.lmax_factor}" if s.lmax_factor is not None else "",
+                 f"K {s.numeig}" if s.numeig is not None else ""]
+        return f"stage {stage}: " + ", ".join(p for p in parts if p) if any(parts) else f"stage {stage}"
+    return f"stage {stage}"
 
 
 def plot_residuals(result: FitResult):
@@ -96,7 +119,15 @@ def plot_residuals(result: FitResult):
     ref = result.target.eigenvalues[:lam.size]
     fig, ax = plt.subplots(figsize=(8, 4.5))
     i = np.arange(1, lam.size)
-    ax.semilogy(i, np.maximum(np.abs(lam[1:] - ref[1:]) / ref[1:], 1e-300), ".")
+    rel = np.abs(lam[1:] - ref[1:]) / ref[1:]
+    # a residual below double precision's resolution is zero as far as the data can tell: drawn at that floor
+    # (one exact eigenvalue would otherwise stretch the log axis down to 1e-300)
+    exact = rel < RESIDUAL_FLOOR
+    ax.semilogy(i[~exact], rel[~exact], ".", label="|λ_i − λ*_i| / λ*_i")
+    if exact.any():
+        ax.semilogy(i[exact], np.full(exact.sum(), RESIDUAL_FLOOR), "v", color="0.5", ms=4,
+                    label=f"below {RESIDUAL_FLOOR:g} (rounding)")
+        ax.legend(fontsize="small")
     ax.set_xlabel("eigenvalue index i")
     ax.set_ylabel("|λ_i − λ*_i| / λ*_i")
     ax.set_title(f"best start {result.best.index}: max {result.best.relative_residual:.2e}")

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..checks import finite_array
 from ..errors import InvalidArgumentError
 from ..spectral_model import SpectralModel
 from ..targets import Target
@@ -62,10 +63,8 @@ class FitProblem:
         self.model, self.target, self.options = model, target, options
         self.optimizer = options.optimizer or model.default_optimizer
         if init is not None:
-            init = np.array(init, dtype=float)
-            if init.shape != (model.nparams,) or not np.all(np.isfinite(init)):
-                raise InvalidArgumentError(f"a starting point must be a finite array of {model.nparams} parameters "
-                                           f"({model.describe()}), got shape {init.shape}")
+            init = finite_array(init, f"a starting point ({model.nparams} parameters of {model.describe()})",
+                                (model.nparams,)).copy()
         self.init = init
         if options.schedule is not None:
             schedule = options.schedule

@@ -23,10 +23,11 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ..checks import check_int, check_options
+from ..checks import check_float, check_int, check_options
 from ..errors import InvalidArgumentError
 from .cotan import cotan_stiffness, vertex_areas
 from .mobius import center_mesh
+from .progress import announce, bar, shown
 from .triangle_mesh import TriangleMesh
 from .validate import validate_mesh
 
@@ -74,9 +75,7 @@ class CMCFOptions:
 
     def __post_init__(self):
         for name in ("step", "tol", "cg_tol"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise InvalidArgumentError(f"CMCFOptions.{name} must be finite and > 0, got {value!r}")
+            check_float(getattr(self, name), f"CMCFOptions.{name}", positive=True)
         for name in ("stall_iterations", "max_iter", "refactor_after"):
             value = getattr(self, name)
             check_int(value, f"CMCFOptions.{name}", minimum=1)
@@ -226,7 +225,12 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
     history = []
     best = (np.inf, x)
     lu = None
-    for it in range(1, opt.max_iter + 1):
+    if shown(mesh.nvertices):
+        announce(f"cMCF of a {mesh.nvertices}-vertex mesh: up to {opt.max_iter} flow steps (a sparse factorization, "
+                 f"then conjugate-gradient solves) until its roundness is at most {opt.tol:g}")
+    steps = bar(mesh.nvertices, opt.max_iter, "cMCF", "steps", iterable=range(1, opt.max_iter + 1))
+    # the bar closes when the loop ends, also by break (tqdm closes its iterator in a finally)
+    for it in steps:
         A = (sp.diags(m) + opt.step * L0).tocsc()
         b = m[:, None] * x
         if lu is None:
@@ -243,6 +247,7 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
                 x = lu.solve(b)
         x, m = _normalize(x, vertex_areas(mesh.with_vertices(x)))
         history.append(roundness(x, m))
+        steps.set_postfix_str(f"roundness {history[-1]:.2g}", refresh=False)
         if history[-1] < best[0]:
             best = (history[-1], x)
         if history[-1] <= opt.tol or _stalled(history, opt):

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..checks import check_choice
 from ..errors import InvalidArgumentError
 from .triangle_mesh import TriangleMesh
 
@@ -85,8 +86,7 @@ def mass_matrix(mesh: TriangleMesh, kind: str = "lumped") -> sp.csr_matrix:
         If ``kind`` is not one of :data:`MASS_KINDS`.
     """
     mesh = _mesh(mesh)
-    if kind not in MASS_KINDS:
-        raise InvalidArgumentError(f"mass kind must be one of {MASS_KINDS}, got {kind!r}")
+    check_choice(kind, "mass kind", MASS_KINDS)
     n = mesh.nvertices
     if kind == "lumped":
         return sp.diags(vertex_areas(mesh)).tocsr()

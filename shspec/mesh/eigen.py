@@ -44,7 +44,9 @@ from scipy.sparse.linalg import splu
 from ..checks import check_int, check_options
 from ..errors import ConvergenceError, InvalidArgumentError, MeshError
 from ..spectral_model import Spectrum
+from ..resources import human_bytes
 from .cotan import cotan_stiffness, mass_matrix
+from .progress import announce, bar, lanczos_estimate, shown
 from .triangle_mesh import TriangleMesh
 from .validate import ZERO_AREA_RTOL
 
@@ -162,8 +164,9 @@ def _select(lam, V, k, rtol, whole):
                       f"{k} are returned, so the group is cut and its members' eigenvectors are arbitrary",
                       RuntimeWarning, stacklevel=3)
     end = end if whole else k
-    if end == lam.size and whole and end > k:
-        # The group fills every computed pair: the caller must ask for more, we cannot tell where it ends.
+    if end == lam.size and whole and end > k and lam.size < V.shape[0]:
+        # The group fills every computed pair: the caller must ask for more, we cannot tell where it ends (when
+        # every pair of the pencil was computed, it ends there: the group is whole).
         raise ConvergenceError(f"eigenvalues {k - 1}..{end - 1} form one degenerate group reaching the end of the "
                                "computed pairs; ask for more eigenpairs")
     return Spectrum(lam[:end].copy(), V[:, :end].copy())
@@ -212,6 +215,10 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
     def mmul(X):
         return diag[:, None] * X if diag is not None else M @ X
 
+    expected, memory, seconds = lanczos_estimate(n, k, max_dim + 2 * b)
+    if shown(n):
+        announce(f"cotan eigenpairs of a {n}-vertex mesh: K = {k}, a Krylov basis of about {expected} vectors "
+                 f"({human_bytes(memory)} allocated), roughly {seconds:.0f} s on one core", memory)
     try:
         lu = splu(sp.csc_matrix(L - sigma * M))
     except RuntimeError:
@@ -234,72 +241,74 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
     nconv = 0
     inject = False
     verified_count = -1
-    while True:
-        if m_next + b > max_dim:
-            raise ConvergenceError(f"shift-invert Lanczos: only {nconv} of more than {k} eigenpairs converged "
-                                   f"with a Krylov basis of {m_next} vectors; raise EigenOptions.max_dim")
-        # Q[:, m:m_next] is the newest block: apply OP and orthogonalize, first against the previous two blocks
-        # (the block three-term recurrence, which removes almost everything), then once against the whole basis
-        # (full re-orthogonalization, which removes the rounding errors that make plain Lanczos lose
-        # orthogonality).  The coefficients of both passes form the column of T.
-        block = Q[:, m:m_next]
-        W = lu.solve(mmul(block))
-        local = Q[:, prev:m_next]
-        C = np.zeros((m_next, m_next - m))
-        C[prev:] = local.T @ mmul(W)
-        W -= local @ C[prev:]
-        basis = Q[:, :m_next]
-        before = np.sqrt(np.einsum("ij,ij->j", W, mmul(W)))
-        C2 = basis.T @ mmul(W)
-        W -= basis @ C2
-        after = np.sqrt(np.einsum("ij,ij->j", W, mmul(W)))
-        if np.any(after < 0.5 * before):
-            # Heavy cancellation: what is left may still lean on the basis; "twice is enough" (Kahan, Parlett).
-            C3 = basis.T @ mmul(W)
-            W -= basis @ C3
-            C2 += C3
-        width = W.shape[1]
-        if inject:
-            # Fresh random directions, orthogonal to the basis, enter with this block (their row of T is zero).
-            extra = rng.standard_normal((n, b))
-            for _ in range(2):
-                extra -= basis @ (basis.T @ mmul(extra))
-            W = np.hstack([W, extra])
-            inject = False
-        new, coef = _orthonormal_block(basis, W, mmul, rng, scale=before.max())
-        coef = coef[:, :width]
-        nb = new.shape[1]
-        T[:m_next, m:m_next] = C + C2
-        T[m_next:m_next + nb, m:m_next] = coef
-        Q[:, m_next:m_next + nb] = new
-        prev, m, m_next = m, m_next, m_next + nb
-        if m < next_check:
-            continue
-        next_check = int(1.15 * m)
-        # Ritz pairs of OP on span Q[:, :m]; residual norms from the coupling block T[m:, :m].
-        Tm = 0.5 * (T[:m, :m] + T[:m, :m].T)
-        mu, S = sla.eigh(Tm)
-        order = np.argsort(-np.abs(mu))
-        mu, S = mu[order], S[:, order]
-        res = np.linalg.norm(T[m:m_next, :m] @ S, axis=0)
-        ok = res <= opt.tol * np.abs(mu)
-        nconv = int(np.argmin(ok)) if not ok.all() else ok.size
-        if nconv == 0:
-            continue
-        # The converged pairs are the eigenvalues within D = 1/|μ| of σ; when D ≥ σ they are all of [0, σ + D].
-        if 1.0 / abs(mu[nconv - 1]) < sigma:
-            continue
-        lam = sigma + 1.0 / mu[:nconv]
-        ascending = np.argsort(lam)
-        # Done when the eigenvalue after the k-th one's group has converged too: then the group is known whole.
-        end = _group_end(lam[ascending], k, opt.multiplet_rtol) if nconv > k else nconv
-        if end < nconv:
-            # A group of b or more equal eigenvalues may have more members than a block of b vectors has found
-            # so far: add b random vectors and accept only when the count below the cut stays the same.
-            if _largest_group(lam[ascending][:end + 1], opt.multiplet_rtol) >= b and end != verified_count:
-                verified_count, inject = end, True
+    with bar(n, expected, "eigenpairs (Krylov basis)", "vectors") as shown_bar:
+        while True:
+            if m_next + b > max_dim:
+                raise ConvergenceError(f"shift-invert Lanczos: only {nconv} of more than {k} eigenpairs converged "
+                                       f"with a Krylov basis of {m_next} vectors; raise EigenOptions.max_dim")
+            # Q[:, m:m_next] is the newest block: apply OP and orthogonalize, first against the previous two blocks
+            # (the block three-term recurrence, which removes almost everything), then once against the whole basis
+            # (full re-orthogonalization, which removes the rounding errors that make plain Lanczos lose
+            # orthogonality).  The coefficients of both passes form the column of T.
+            block = Q[:, m:m_next]
+            W = lu.solve(mmul(block))
+            local = Q[:, prev:m_next]
+            C = np.zeros((m_next, m_next - m))
+            C[prev:] = local.T @ mmul(W)
+            W -= local @ C[prev:]
+            basis = Q[:, :m_next]
+            before = np.sqrt(np.einsum("ij,ij->j", W, mmul(W)))
+            C2 = basis.T @ mmul(W)
+            W -= basis @ C2
+            after = np.sqrt(np.einsum("ij,ij->j", W, mmul(W)))
+            if np.any(after < 0.5 * before):
+                # Heavy cancellation: what is left may still lean on the basis; "twice is enough" (Kahan, Parlett).
+                C3 = basis.T @ mmul(W)
+                W -= basis @ C3
+                C2 += C3
+            width = W.shape[1]
+            if inject:
+                # Fresh random directions, orthogonal to the basis, enter with this block (their row of T is zero).
+                extra = rng.standard_normal((n, b))
+                for _ in range(2):
+                    extra -= basis @ (basis.T @ mmul(extra))
+                W = np.hstack([W, extra])
+                inject = False
+            new, coef = _orthonormal_block(basis, W, mmul, rng, scale=before.max())
+            coef = coef[:, :width]
+            nb = new.shape[1]
+            T[:m_next, m:m_next] = C + C2
+            T[m_next:m_next + nb, m:m_next] = coef
+            Q[:, m_next:m_next + nb] = new
+            prev, m, m_next = m, m_next, m_next + nb
+            shown_bar.update(nb)
+            if m < next_check:
                 continue
-            return _finish(L, M, Q[:, :m] @ S[:, ascending], k, opt.multiplet_rtol, whole_multiplets)
+            next_check = int(1.15 * m)
+            # Ritz pairs of OP on span Q[:, :m]; residual norms from the coupling block T[m:, :m].
+            Tm = 0.5 * (T[:m, :m] + T[:m, :m].T)
+            mu, S = sla.eigh(Tm)
+            order = np.argsort(-np.abs(mu))
+            mu, S = mu[order], S[:, order]
+            res = np.linalg.norm(T[m:m_next, :m] @ S, axis=0)
+            ok = res <= opt.tol * np.abs(mu)
+            nconv = int(np.argmin(ok)) if not ok.all() else ok.size
+            if nconv == 0:
+                continue
+            # The converged pairs are the eigenvalues within D = 1/|μ| of σ; when D ≥ σ they are all of [0, σ + D].
+            if 1.0 / abs(mu[nconv - 1]) < sigma:
+                continue
+            lam = sigma + 1.0 / mu[:nconv]
+            ascending = np.argsort(lam)
+            # Done when the eigenvalue after the k-th one's group has converged too: then the group is known whole.
+            end = _group_end(lam[ascending], k, opt.multiplet_rtol) if nconv > k else nconv
+            if end < nconv:
+                # A group of b or more equal eigenvalues may have more members than a block of b vectors has found
+                # so far: add b random vectors and accept only when the count below the cut stays the same.
+                if _largest_group(lam[ascending][:end + 1], opt.multiplet_rtol) >= b and end != verified_count:
+                    verified_count, inject = end, True
+                    continue
+                return _finish(L, M, Q[:, :m] @ S[:, ascending], k, opt.multiplet_rtol, whole_multiplets)
 
 
 def _orthonormal_block(basis, W, mmul, rng, scale):

@@ -7,7 +7,7 @@ import numpy as np
 
 from ..errors import InvalidArgumentError
 from .eigen import mesh_spectrum
-from .plot import plot_hammer
+from .plot import area_percentiles, plot_hammer
 from .triangle_mesh import TriangleMesh
 
 __all__ = ["plot_vertex_factors", "plot_spectra_validation"]
@@ -31,12 +31,15 @@ def plot_vertex_factors(sphere: TriangleMesh, fitted, truth=None):
         raise InvalidArgumentError(f"truth must have shape {fitted.shape}, got {truth.shape}")
     fig = plt.figure(figsize=(17, 4.2))
     axes = [fig.add_subplot(1, 3, i + 1, projection="hammer") for i in range(3)]
-    both = np.concatenate([truth, fitted])
-    lo, hi = np.percentile(both, 1.0), np.percentile(both, 99.0)
-    plot_hammer(sphere, np.clip(truth, lo, hi), ax=axes[0], title="target (cMCF factors)", log=True, label="factor")
-    plot_hammer(sphere, np.clip(fitted, lo, hi), ax=axes[1], title="fit", log=True, label="factor")
-    plot_hammer(sphere, np.log10(fitted / truth), ax=axes[2], cmap="RdBu_r", title="log10(fit / target)",
-                label="log10 ratio")
+    # one colour range for target and fit (area percentiles of both), so that equal colours mean equal factors
+    lo = min(area_percentiles(sphere, truth, [1.0])[0], area_percentiles(sphere, fitted, [1.0])[0])
+    hi = max(area_percentiles(sphere, truth, [99.0])[0], area_percentiles(sphere, fitted, [99.0])[0])
+    plot_hammer(sphere, truth, ax=axes[0], title="target (cMCF factors)", log=True, label="factor", vmin=lo, vmax=hi)
+    plot_hammer(sphere, fitted, ax=axes[1], title="fit", log=True, label="factor", vmin=lo, vmax=hi)
+    ratio = np.log10(fitted / truth)
+    bound = float(np.max(np.abs(area_percentiles(sphere, ratio, [1.0, 99.0])))) or 1.0
+    plot_hammer(sphere, ratio, ax=axes[2], cmap="RdBu_r", title="log10(fit / target)", label="log10 ratio",
+                vmin=-bound, vmax=bound)
     return fig
 
 

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
 import trimesh
 
+from ..atomic import atomic_output
 from ..errors import InvalidArgumentError, MeshError
 from .builtin import BUILTIN_MESHES, resolve_mesh_path
 from .triangle_mesh import TriangleMesh
@@ -60,6 +62,8 @@ def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None
     triangles without shared vertices, so for STL coincident vertices are merged (trimesh's ``process=True``);
     otherwise every STL file would load as a soup of disconnected triangles.
     """
+    if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        raise InvalidArgumentError(f"a mesh file is a non-empty path, got {path!r}")
     path = resolve_mesh_path(path)
     if not path.suffix:
         raise InvalidArgumentError(f"{path}: neither a mesh file ({', '.join(MESH_FORMATS)}) nor a mesh shipped with "
@@ -69,11 +73,19 @@ def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None
         raise MeshError(f"{path}: no such file")
     process = path.suffix.lower() == ".stl" if merge_vertices is None else bool(merge_vertices)
     try:
-        loaded = trimesh.load(path, process=process, force="mesh")
+        # unprocessed first: trimesh's processing drops faces at NaN vertices, which would then be reported as holes
+        loaded = trimesh.load(path, process=False, force="mesh")
     except Exception as exc:  # trimesh raises many unrelated types on malformed input
         raise MeshError(f"{path}: cannot read mesh: {exc}") from exc
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise MeshError(f"{path}: holds no triangles")
+    vertices = np.asarray(loaded.vertices)
+    bad = np.flatnonzero(~np.all(np.isfinite(vertices), axis=1))
+    if bad.size:
+        raise MeshError(f"{path}: {bad.size} vertices have NaN or inf coordinates (first: vertex {bad[0]} = "
+                        f"{vertices[bad[0]].tolist()})")
+    if process:
+        loaded = trimesh.Trimesh(vertices, np.asarray(loaded.faces), process=True)
     mesh = TriangleMesh(np.asarray(loaded.vertices), np.asarray(loaded.faces))
     if not validate:
         return mesh
@@ -83,8 +95,9 @@ def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None
         duplicates = mesh.nvertices - np.unique(mesh.vertices, axis=0).shape[0]
         if duplicates and not process:
             raise MeshError(f"{path}: {exc}; {duplicates} of its {mesh.nvertices} vertices repeat the position of "
-                            "another (faces that do not share their vertices?): weld them with --merge-vertices "
-                            "(merge_vertices=True)") from None
+                            "another (faces that do not share their vertices?): weld them (load_mesh(..., "
+                            "merge_vertices=True), 'shspec cmcf --merge-vertices', or save the mesh as STL, which is "
+                            "always welded)") from None
         raise
 
 
@@ -99,22 +112,22 @@ def save_mesh(mesh: TriangleMesh, path) -> Path:
     Raises
     ------
     InvalidArgumentError
-        If ``mesh`` is not a TriangleMesh or the suffix is unsupported.
-    MeshError
-        If the file cannot be written.
+        If ``mesh`` is not a TriangleMesh, ``path`` is not a path or the suffix is unsupported.
+    OutputError
+        If the file cannot be written (:func:`shspec.atomic.atomic_output`: the previous file is then intact).
     """
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
+    if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        raise InvalidArgumentError(f"a mesh file is a non-empty path, got {path!r}")
     path = Path(path)
     _check_suffix(path)
     tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
-    try:
+    with atomic_output(path) as tmp:
         # OBJ: positions and faces only, at full double precision, so that a round trip is exact.
         if path.suffix.lower() == ".obj":
-            path.write_text(trimesh.exchange.obj.export_obj(tm, include_normals=False, include_color=False,
+            tmp.write_text(trimesh.exchange.obj.export_obj(tm, include_normals=False, include_color=False,
                                                             include_texture=False, digits=17))
         else:
-            tm.export(path)
-    except OSError as exc:
-        raise MeshError(f"{path}: cannot write mesh: {exc}") from exc
+            tm.export(tmp, file_type=path.suffix.lower().lstrip("."))
     return path

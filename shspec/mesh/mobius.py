@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import finite_array
 from ..errors import ConvergenceError, InvalidArgumentError, MeshError, NotPositiveError
 from ..sphere.mobius import mobius_translate, newton_step
 from .triangle_mesh import TriangleMesh
@@ -68,9 +69,7 @@ def center_mesh(sphere: TriangleMesh, weights, *, tol: float = 1e-12, max_iter: 
     off = np.max(np.abs(np.linalg.norm(x, axis=1) - 1.0))
     if off > 1e-8:
         raise MeshError(f"the vertices are not on the unit sphere: |x| − 1 reaches {off:.3g}")
-    w = np.asarray(weights, dtype=float)
-    if w.shape != (sphere.nvertices,) or not np.all(np.isfinite(w)):
-        raise InvalidArgumentError(f"weights must be a finite array of shape ({sphere.nvertices},)")
+    w = finite_array(weights, "weights", (sphere.nvertices,))
     if np.any(w <= 0):
         raise NotPositiveError(f"weights must be > 0; vertex {int(np.flatnonzero(w <= 0)[0])} has "
                                f"{w[w <= 0][0]:.3g}")

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from ..checks import check_options
+from ..atomic import atomic_output
+from ..checks import check_options, finite_array
 from ..errors import InvalidArgumentError, MeshError, NotPositiveError
 from ..spectral_model import TRANSFORMS, SpectralModel, Spectrum, regularization_weight
 from ..sphere.evaluate import sample_harmonic
@@ -227,9 +228,7 @@ class MeshModel(SpectralModel):
         value : float
         gradient : (n,) array
         """
-        c = np.asarray(params, dtype=float)
-        if c.shape != (self.nparams,) or not np.all(np.isfinite(c)):
-            raise InvalidArgumentError(f"params must be a finite array of shape ({self.nparams},)")
+        c = finite_array(params, "params", (self.nparams,))
         weight = float(weight)
         if not np.isfinite(weight) or weight < 0:
             raise InvalidArgumentError(f"weight must be finite and >= 0, got {weight}")
@@ -330,8 +329,9 @@ class MeshModel(SpectralModel):
         ``--init`` file) and the model's sphere mesh (sphere.obj) into ``directory``; returns the file names."""
         c = self._factors(params)
         directory = Path(directory)
-        np.savetxt(directory / "factors.txt", c, fmt="%.17g",
-                   header=f"per-vertex conformal factors c of {self.describe()}, vertex order of sphere.obj")
+        with atomic_output(directory / "factors.txt") as tmp:
+            np.savetxt(tmp, c, fmt="%.17g",
+                       header=f"per-vertex conformal factors c of {self.describe()}, vertex order of sphere.obj")
         save_mesh(self.mesh, directory / "sphere.obj")
         return ["factors.txt", "sphere.obj"]
 

@@ -35,7 +35,7 @@ import scipy.sparse as sp
 from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
-from ..checks import check_float, check_int
+from ..checks import check_float, check_int, finite_array
 from ..errors import InvalidArgumentError, MeshError
 from ..sphere.evaluate import harmonic_matrix
 from ..sphere.mobius import mobius_translate
@@ -56,10 +56,7 @@ def _check_mesh(mesh) -> TriangleMesh:
 
 
 def _check_values(mesh: TriangleMesh, values, name: str) -> np.ndarray:
-    v = np.asarray(values, dtype=float)
-    if v.shape != (mesh.nvertices,) or not np.all(np.isfinite(v)):
-        raise InvalidArgumentError(f"{name} must be a finite array of shape ({mesh.nvertices},), got {v.shape}")
-    return v
+    return finite_array(values, name, (mesh.nvertices,))
 
 
 def _check_sphere(mesh: TriangleMesh) -> None:

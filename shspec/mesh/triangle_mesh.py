@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import real_array
 from ..errors import MeshError
 
 __all__ = ["TriangleMesh"]
@@ -36,11 +37,13 @@ class TriangleMesh:
     faces: np.ndarray
 
     def __post_init__(self):
+        v = real_array(self.vertices, "vertices", error=MeshError).copy()
         try:
-            v = np.array(self.vertices, dtype=np.float64)
             f = np.array(self.faces)
         except (TypeError, ValueError) as exc:
-            raise MeshError(f"vertices and faces must be numeric arrays: {exc}") from None
+            raise MeshError(f"faces must be a numeric array: {exc}") from None
+        if f.dtype.kind not in "biuf":
+            raise MeshError(f"faces must hold integer vertex indices, got an array of {f.dtype}")
         if v.ndim != 2 or v.shape[1] != 3:
             raise MeshError(f"vertices must have shape (n, 3), got {v.shape}")
         if f.ndim != 2 or f.shape[1] != 3:

@@ -1,8 +1,9 @@
 """Checks that a triangle mesh is a closed, oriented, manifold, connected surface, of genus 0 unless told otherwise.
 
 Every check raises :class:`~shspec.errors.MeshError` whose message names the offending count or element, in this
-order: finite coordinates, repeated indices, unreferenced vertices, zero-area faces, non-manifold edges, boundary
-loops, orientation, components, non-manifold vertices, genus.  The order matters: a later check assumes the earlier
+order: finite coordinates, repeated indices, unreferenced vertices, at least 4 vertices, no two faces on the same
+three vertices (a back-to-back "pillow"), coordinates whose areas neither overflow nor underflow, zero-area faces,
+non-manifold edges, boundary loops, orientation, components, non-manifold vertices, genus.  The order matters: a later check assumes the earlier
 ones passed (e.g. counting boundary loops needs every edge to have at most two faces).
 
 The genus check is on by default because cMCF, the harmonic bridge, the fits and the re-embedding all need a
@@ -22,6 +23,11 @@ __all__ = ["validate_mesh", "ZERO_AREA_RTOL"]
 
 #: A face whose area is below this fraction of the mean face area counts as degenerate.
 ZERO_AREA_RTOL = 1e-12
+
+#: Coordinates are kept within [1e-100, 1e100] in magnitude: the cotan weights, areas and eigenvalues (∝ 1/area) of
+#: a mesh then stay far from the overflow and underflow of double precision.
+_LARGEST_COORDINATE = 1e100
+_SMALLEST_COORDINATE = 1e-100
 
 
 def validate_mesh(mesh: TriangleMesh, *, genus0: bool = True) -> TriangleMesh:
@@ -61,7 +67,23 @@ def validate_mesh(mesh: TriangleMesh, *, genus0: bool = True) -> TriangleMesh:
     if not used.all():
         free = np.flatnonzero(~used)
         raise MeshError(f"{free.size} vertices belong to no face (first: vertex {free[0]})")
-    areas = mesh.face_areas()
+    if n < 4:
+        raise MeshError(f"the mesh has {n} vertices; a closed surface needs at least 4 (a tetrahedron): with fewer, "
+                        "its faces lie back to back and enclose nothing")
+    triples = np.unique(np.sort(f, axis=1), axis=0, return_inverse=True, return_counts=True)
+    if np.any(triples[2] > 1):
+        twin = np.flatnonzero(triples[2][triples[1].ravel()] > 1)[:2]
+        raise MeshError(f"faces {twin[0]} and {twin[1]} use the same three vertices {f[twin[0]].tolist()} (back to "
+                        "back, a zero-volume 'pillow'); the surface is degenerate there")
+    extent = float(np.max(np.abs(v)))
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        areas = mesh.face_areas()
+    if not np.all(np.isfinite(areas)) or extent > _LARGEST_COORDINATE:
+        raise MeshError(f"coordinates up to {extent:.3g} are too large: squared lengths and face areas overflow "
+                        f"double precision (keep them below {_LARGEST_COORDINATE:g}); rescale the mesh")
+    if 0 < extent < _SMALLEST_COORDINATE:
+        raise MeshError(f"coordinates of at most {extent:.3g} are too small: squared lengths and face areas "
+                        f"underflow double precision (keep them above {_SMALLEST_COORDINATE:g}); rescale the mesh")
     zero = np.flatnonzero(areas <= ZERO_AREA_RTOL * areas.mean())
     if zero.size:
         raise MeshError(f"{zero.size} faces have zero area (first: face {zero[0]} = {f[zero[0]].tolist()})")

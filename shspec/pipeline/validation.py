@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import save_figure, write_text
 from ..checks import check_int, check_options
 from ..embed.ambiguity import AmbiguityReport, detect_ambiguity
 from ..embed.render import render_mesh
@@ -260,6 +261,31 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
                             summary=summary)
 
 
+#: Colours of ambiguity.png, by category: not tested, decided, ambiguous (the legend and the table's words).
+AMBIGUITY_COLOURS = ("#d9d9d9", "tab:blue", "tab:red")
+
+
+def _ambiguity_figure(result, amb, up: str):
+    """The re-embedded mesh with each tested cap coloured by the verdict of the table (summary.json "ambiguity"):
+    one fixed colour per category, so that the legend cannot disagree with the table whatever the caps are."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    label = np.zeros(result.target.nvertices)
+    for cap in amb.caps:  # where caps overlap, "ambiguous" wins, as it does for the surface
+        label[cap.vertices] = np.maximum(label[cap.vertices], 2.0 if cap.ambiguous else 1.0)
+    n_amb = sum(cap.ambiguous for cap in amb.caps)
+    # one category per face (the highest of its vertices): a mean would paint a cap's rim in another category
+    face_label = label[result.embedding.mesh.faces].max(axis=1)
+    fig = render_mesh(result.embedding.mesh, values=face_label, cmap=ListedColormap(AMBIGUITY_COLOURS), vmin=0.0,
+                      vmax=2.0, up=up, title=f"{len(amb.caps)} tested caps: {n_amb} ambiguous, "
+                      f"{len(amb.caps) - n_amb} decided")
+    fig.legend(handles=[Patch(color=c, label=t) for c, t in
+                        zip(AMBIGUITY_COLOURS, ("not tested", "decided", "ambiguous"))],
+               loc="lower center", ncol=3, fontsize="small", frameon=False)
+    return fig
+
+
 def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int = 90) -> Path:
     """Write ``summary.json``, ``report.md`` and the PNG figures of a validation to ``out_dir``.
 
@@ -287,7 +313,7 @@ def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int =
         raise InvalidArgumentError(f"expected a ValidationResult, got {type(result).__name__}")
     out = ensure_directory(out_dir)
     s = result.summary
-    (out / "summary.json").write_text(json.dumps(s, indent=1))
+    write_text(out / "summary.json", json.dumps(s, indent=1))
 
     aligned = result.target.with_vertices(result.embedding.mesh.vertices @ result.distance.transform[:3, :3].T
                                           + result.distance.transform[:3, 3])
@@ -299,22 +325,19 @@ def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int =
     fig = plt.figure(figsize=(4.5 * len(meshes), 4.5))
     for i, (m, title) in enumerate(meshes):
         render_mesh(m, ax=fig.add_subplot(1, len(meshes), i + 1, projection="3d"), title=title, up=up)
-    fig.savefig(out / "meshes.png", dpi=dpi, bbox_inches="tight")
+    save_figure(fig, out / "meshes.png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
 
     amb = result.ambiguity
     if amb is not None and amb.caps:
-        label = np.zeros(result.target.nvertices)
-        for i, cap in enumerate(amb.caps):
-            label[cap.vertices] = (i + 1) * (1 if cap.ambiguous else -1)
-        fig = render_mesh(result.embedding.mesh, values=label, cmap="coolwarm", up=up,
-                          title="tested caps (red: ambiguous, blue: decided)")
-        fig.savefig(out / "ambiguity.png", dpi=dpi, bbox_inches="tight")
+        fig = _ambiguity_figure(result, amb, up)
+        save_figure(fig, out / "ambiguity.png", dpi=dpi, bbox_inches="tight")
         plt.close(fig)
 
-    fig = plot_hammer(result.flow.sphere, np.log10(result.flow.factors), title="cMCF factors (log10 c)",
-                      label="log10 c")
-    fig.savefig(out / "factors.png", dpi=dpi, bbox_inches="tight")
+    # the factors themselves on a log scale: the bar reads in c, and says how far the clipped extremes go
+    fig = plot_hammer(result.flow.sphere, result.flow.factors, log=True, title="cMCF factors c",
+                      label="conformal factor c (log scale)")
+    save_figure(fig, out / "factors.png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
 
     lam0 = result.spectra["target_pl"]
@@ -332,10 +355,10 @@ def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int =
     a2.set_ylabel("|λ_i / λ_i(target) − 1|")
     a2.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "spectra.png", dpi=dpi, bbox_inches="tight")
+    save_figure(fig, out / "spectra.png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
 
     text = validation_markdown(s)
     path = out / "report.md"
-    path.write_text(text)
+    write_text(path, text)
     return path

@@ -5,7 +5,7 @@
 * :mod:`~shspec.spectral.topology`: χ, genus (with a confidence statement) and area from the heat-trace
   asymptotics, and :func:`check_genus_zero`, the guard of genus-0 fits;
 * :mod:`~shspec.spectral.descriptors`: Shape-DNA (area-normalized eigenvalues) and the heat kernel signature;
-* :mod:`~shspec.spectral.spectrum_files`: spectrum and descriptor files (text that numpy and ``shspec fit`` read);
+* :mod:`~shspec.spectral.descriptor_files`: descriptor files (text that numpy and ``shspec fit`` read);
 * :mod:`~shspec.spectral.batch`: all of it for many meshes, one job per mesh on an Executor
   (:func:`shspec.parallel.make_executor`).
 """
@@ -13,7 +13,7 @@
 from .batch import MeshJobResult, collect_meshes, mesh_job, run_batch
 from .descriptors import heat_kernel_signature, hks_times, shape_dna
 from .heat import as_eigenvalues, heat_trace, spectral_tail
-from .spectrum_files import read_eigenvalues, write_descriptors, write_values
+from .descriptor_files import read_eigenvalues, write_descriptors, write_values
 from .topology import MIN_EIGENVALUES, TopologyEstimate, TopologyOptions, check_genus_zero, estimate_topology
 from .weyl import TopDensity, WeylFit, top_density, weyl_area, weyl_fit
 

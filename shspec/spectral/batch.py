@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from ..atomic import write_text
 from ..checks import check_int
 from ..errors import InvalidArgumentError
 from ..outputs import ensure_directory, write_csv
@@ -28,7 +29,7 @@ from ..mesh.builtin import resolve_mesh_path
 from ..mesh.mesh_files import MESH_FORMATS, load_mesh
 from ..parallel import SerialExecutor
 from .descriptors import hks_times
-from .spectrum_files import write_descriptors, write_values
+from .descriptor_files import write_descriptors, write_values
 from .topology import TopologyEstimate, estimate_topology
 
 __all__ = ["MeshJobResult", "mesh_job", "collect_meshes", "run_batch", "TABLE_NAME"]
@@ -142,7 +143,7 @@ def _write(out: Path, res: MeshJobResult, descriptors: bool) -> None:
                      f"first {res.eigenvalues.size} cotan Laplace-Beltrami eigenvalues of {res.path}, ascending, "
                      f"1/area; area {res.area:.17g}")
     if res.topology is not None:
-        (out / f"{res.name}.topology.json").write_text(json.dumps(res.topology.to_dict(), indent=1) + "\n")
+        write_text(out / f"{res.name}.topology.json", json.dumps(res.topology.to_dict(), indent=1) + "\n")
 
 
 def _row(res: MeshJobResult) -> dict:

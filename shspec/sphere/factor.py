@@ -13,7 +13,7 @@ import pyshtools
 import scipy.optimize
 
 from ..errors import InvalidArgumentError, NotPositiveError
-from ..plotstyle import style_hammer
+from ..plotstyle import linear_colorbar_ticks, style_hammer
 from .grid import evaluate_on_grid, expand_grid, glq_grid
 from .harmonics import (as_coefficients, check_degree, lmax_of_size, vector_to_cilm, vector_to_shcoeffs)
 
@@ -367,7 +367,8 @@ class ConformalFactor:
             ax = fig.add_subplot(111, projection="hammer")
         mesh = ax.pcolormesh(lon[order], lat, values[:, order], shading="nearest", cmap=cmap, vmin=vmin, vmax=vmax)
         style_hammer(ax)
-        ax.figure.colorbar(mesh, ax=ax, orientation="horizontal", pad=0.06, shrink=0.6, label="rho")
+        linear_colorbar_ticks(ax.figure.colorbar(mesh, ax=ax, orientation="horizontal", pad=0.1, shrink=0.6,
+                                                 label="rho"))
         ax.set_title(title if title is not None else self.name, pad=10)
         return ax
 

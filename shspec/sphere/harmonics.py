@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pyshtools
 
+from ..checks import real_array
 from ..errors import BandLimitError, ConventionError, InvalidArgumentError
 
 __all__ = [
@@ -50,8 +51,14 @@ def ncoeffs(lmax: int) -> int:
 
 def flat_index(l, m):
     """Flat index ``l*l + l + m`` of the harmonic (l, m); works elementwise on arrays."""
-    l = np.asarray(l)
-    m = np.asarray(m)
+    l = real_array(l, "l")
+    m = real_array(m, "m")
+    if np.any(l != np.round(l)) or np.any(m != np.round(m)):
+        raise InvalidArgumentError("the degree l and order m must be integers")
+    try:
+        l, m = np.broadcast_arrays(l.astype(np.int64), m.astype(np.int64))
+    except ValueError:
+        raise InvalidArgumentError(f"l and m of shapes {l.shape} and {m.shape} do not broadcast") from None
     if np.any(l < 0) or np.any(np.abs(m) > l):
         raise InvalidArgumentError("need l >= 0 and |m| <= l")
     return l * l + l + m
@@ -97,11 +104,16 @@ def vector_to_cilm(a) -> np.ndarray:
 
 def cilm_to_vector(cilm, lmax: int | None = None) -> np.ndarray:
     """pyshtools array cilm (2, L+1, L+1) -> flat coefficient vector (N,), truncated or zero-padded to lmax."""
-    cilm = np.asarray(cilm, dtype=float)
+    cilm = real_array(cilm, "cilm")
     if cilm.ndim != 3 or cilm.shape[0] != 2 or cilm.shape[1] != cilm.shape[2]:
         raise InvalidArgumentError(f"a cilm array has shape (2, L+1, L+1), got {cilm.shape}")
     if not np.all(np.isfinite(cilm)):
         raise InvalidArgumentError("cilm contains NaN or inf")
+    sine0 = np.flatnonzero(cilm[1, :, 0] != 0)
+    if sine0.size:  # sin(0 phi) = 0: such a coefficient means nothing, and dropping it silently hides a mix-up
+        l0 = int(sine0[0])
+        raise ConventionError(f"cilm[1, {l0}, 0] = {cilm[1, l0, 0]:g} is a sine coefficient at order m = 0, which "
+                              "does not exist; the array is probably in another layout")
     have = cilm.shape[1] - 1
     lmax = have if lmax is None else check_degree(lmax, "lmax")
     l, m = degree_order(lmax)
@@ -135,7 +147,7 @@ def as_coefficients(value, lmax: int | None = None) -> np.ndarray:
     """Flat coefficient vector from a flat vector, a cilm array or an SHCoeffs object."""
     if isinstance(value, pyshtools.SHCoeffs):
         return shcoeffs_to_vector(value, lmax)
-    arr = np.asarray(value, dtype=float)
+    arr = real_array(value, "coefficients")
     if arr.ndim == 3:
         return cilm_to_vector(arr, lmax)
     vec = _finite_vector(arr, "coefficient vector")
@@ -152,10 +164,7 @@ def as_coefficients(value, lmax: int | None = None) -> np.ndarray:
 
 
 def _finite_vector(a, what: str) -> np.ndarray:
-    try:
-        arr = np.asarray(a, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidArgumentError(f"{what} must be numeric: {exc}") from None
+    arr = real_array(a, what)
     if arr.ndim != 1:
         raise InvalidArgumentError(f"{what} must be one-dimensional, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):

@@ -13,7 +13,7 @@ from shspec.mesh.eigen import mesh_spectrum
 from shspec.mesh.shapes import blob
 from shspec.spectral import heat_trace
 from shspec.spectral.descriptors import heat_kernel_signature, hks_times, shape_dna
-from shspec.spectral.spectrum_files import read_eigenvalues, write_descriptors
+from shspec.spectral.descriptor_files import read_eigenvalues, write_descriptors
 
 
 @pytest.fixture(scope="module")

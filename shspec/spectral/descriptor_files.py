@@ -5,8 +5,8 @@ and Shape-DNA files hold one value per line (what :func:`shspec.targets.read_spe
 trace two columns t, Z(t), the heat kernel signature one row per vertex and one column per time (the times in the
 header).
 
-Reading.  :func:`read_eigenvalues` also accepts two-column text (index, eigenvalue), as other tools write them;
-``read_spectrum`` flattens such a file into one interleaved list, so the second column is taken here instead.
+Reading.  :func:`read_eigenvalues` is :func:`shspec.spectrum_file.read_spectrum`, the one reader of every
+command: text (one or more columns, with or without a header, CSV), ``.npy`` and ``.json``.
 """
 
 from __future__ import annotations
@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import CheckpointError, InvalidArgumentError
-from ..targets import read_spectrum
+from ..atomic import atomic_output
+from ..errors import InvalidArgumentError
+from ..spectrum_file import read_spectrum as read_eigenvalues
 from .descriptors import heat_kernel_signature, hks_times, shape_dna
 from .heat import heat_trace
 
@@ -27,43 +28,11 @@ DESCRIPTOR_SUFFIXES = {"eigenvalues": ".eigenvalues.txt", "shapedna": ".shapedna
                        "heat_trace": ".heat_trace.txt", "hks": ".hks.txt"}
 
 
-def read_eigenvalues(path) -> np.ndarray:
-    """Eigenvalues from a file: what ``read_spectrum`` reads, plus two-column text (index, value) (module notes).
-
-    Returns
-    -------
-    (k,) ndarray
-        λ₀ = 0 first (prepended when the file starts above 0).
-
-    Raises
-    ------
-    InvalidArgumentError
-        If the file cannot be read or holds no finite eigenvalues.
-    """
-    path = Path(path)
-    if path.suffix not in (".npy", ".json"):
-        try:
-            table = np.loadtxt(path, ndmin=2)
-        except (OSError, ValueError) as exc:
-            raise InvalidArgumentError(f"cannot read a spectrum from {path}: {exc}") from None
-        if table.shape[0] > 1 and table.shape[1] == 2:
-            lam = table[:, 1]
-            if lam.size == 0 or not np.all(np.isfinite(lam)):
-                raise InvalidArgumentError(f"{path} holds no finite eigenvalues")
-            return np.concatenate([[0.0], lam]) if lam[0] > 1e-8 * lam[-1] else np.concatenate([[0.0], lam[1:]])
-        if table.shape[0] > 1 and table.shape[1] > 2:
-            raise InvalidArgumentError(f"{path}: {table.shape[1]} columns; a spectrum file has one value per line "
-                                       "(or two columns: index, eigenvalue)")
-    return read_spectrum(path)
-
-
 def write_values(path, values, header: str) -> Path:
     """Write (k,) values one per line at full precision under '#' ``header`` lines; returns the path."""
     path = Path(path)
-    try:
-        np.savetxt(path, np.asarray(values, dtype=float).reshape(-1), fmt="%.17g", header=header)
-    except OSError as exc:
-        raise CheckpointError(f"cannot write {path}: {exc}") from exc
+    with atomic_output(path) as tmp:
+        np.savetxt(tmp, np.asarray(values, dtype=float).reshape(-1), fmt="%.17g", header=header)
     return path
 
 
@@ -110,19 +79,15 @@ def write_descriptors(directory, stem: str, eigenvalues, area: float, *, eigenve
     }
     trace = np.stack([t, heat_trace(eigenvalues, t)], axis=1)
     path = directory / f"{stem}{DESCRIPTOR_SUFFIXES['heat_trace']}"
-    try:
-        np.savetxt(path, trace, fmt="%.17g", header=f"heat trace{origin} of the first {k} eigenvalues (no tail): "
+    with atomic_output(path) as tmp:
+        np.savetxt(tmp, trace, fmt="%.17g", header=f"heat trace{origin} of the first {k} eigenvalues (no tail): "
                    "t [area units], Z(t) = sum exp(-lambda t)")
-    except OSError as exc:
-        raise CheckpointError(f"cannot write {path}: {exc}") from exc
     paths["heat_trace"] = path
     if eigenvectors is not None:
         hks = heat_kernel_signature(eigenvalues, eigenvectors, t)
         path = directory / f"{stem}{DESCRIPTOR_SUFFIXES['hks']}"
-        try:
-            np.savetxt(path, hks, fmt="%.10g", header=f"heat kernel signature{origin}: one row per vertex, one "
+        with atomic_output(path) as tmp:
+            np.savetxt(tmp, hks, fmt="%.10g", header=f"heat kernel signature{origin}: one row per vertex, one "
                        f"column per time t [1/area]; times: {' '.join(f'{x:.10g}' for x in t)}")
-        except OSError as exc:
-            raise CheckpointError(f"cannot write {path}: {exc}") from exc
         paths["hks"] = path
     return paths

@@ -1,0 +1,166 @@
+"""Issue 34, items 3-5: a fit never silently replaces a checkpoint, every output is written atomically with one
+error naming the file, and SIGTERM is handled like Ctrl-C."""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import matplotlib.figure
+import numpy as np
+import pytest
+
+from shspec.cli import main
+from shspec.errors import CheckpointError, OutputError
+from shspec.galerkin import HarmonicModel
+from shspec.inverse import FitOptions, blob_factor, fit, harmonic_target
+from shspec.inverse.checkpoint import save_checkpoint
+from shspec.inverse.output import write_result
+
+TINY = ["fit", "--target", "blob", "--numeig", "10", "--lmax", "8", "--lmax-factor", "4", "--starts", "1",
+        "--max-iter", "3", "--basin-hops", "0", "--schedule", "none", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def tiny_result():
+    target = harmonic_target(blob_factor(), lmax=8, numeig=10)
+    return fit(target, HarmonicModel(8, 4), FitOptions(starts=1, max_iter=2, basin_hops=0, schedule=(),
+                                                       progress=False))
+
+
+# item 3 -------------------------------------------------------------------------------------------------------
+
+def test_a_fit_into_a_folder_with_a_checkpoint_is_refused_and_says_what_is_there(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(TINY + ["--out", str(out), "--checkpoint-every", "1"]) == 0
+    before = (out / "checkpoint.h5").read_bytes()
+    capsys.readouterr()
+    assert main(TINY + ["--out", str(out), "--checkpoint-every", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "checkpoint" in err and "1 finished start" in err and "--resume" in err and "--overwrite" in err
+    assert (out / "checkpoint.h5").read_bytes() == before
+    assert main(TINY + ["--out", str(out), "--overwrite"]) == 0
+    assert not (out / "checkpoint.h5").exists()  # discarded, not left behind to be resumed by mistake
+
+
+def test_the_checkpoint_message_names_the_running_stage_and_history_rows(tmp_path, tiny_result):
+    from shspec.inverse.checkpoint import claim_checkpoint, fingerprint
+    from shspec.inverse.problem import StartProgress
+
+    path = tmp_path / "checkpoint.h5"
+    progress = StartProgress(index=1, stage=2, base=np.zeros(3), state=None, history=[(0.0, 1.0, 2.0)] * 51)
+    save_checkpoint(path, fingerprint(FitOptions(), np.arange(3.0), "m"), list(tiny_result.starts), progress)
+    with pytest.raises(CheckpointError, match="start 1 running at stage 2 with 51 history rows"):
+        claim_checkpoint(path, resume=False, overwrite=False)
+
+
+def test_resume_without_a_checkpoint_is_refused(tmp_path, capsys):
+    assert main(TINY + ["--out", str(tmp_path / "none"), "--resume"]) == 1
+    err = capsys.readouterr().err
+    assert "nothing to resume" in err and "checkpoint.h5" in err
+    assert not (tmp_path / "none" / "summary.json").exists()
+
+
+# item 4 -------------------------------------------------------------------------------------------------------
+
+def _full_disk(*args, **kwargs):
+    raise OSError(errno.ENOSPC, "No space left on device")
+
+
+def test_a_full_disk_while_writing_summary_json_keeps_the_old_one(tmp_path, tiny_result, monkeypatch):
+    write_result(tiny_result, tmp_path, figures=False)
+    old = (tmp_path / "summary.json").read_text()
+    monkeypatch.setattr(Path, "write_text", _full_disk)
+    with pytest.raises(OutputError) as info:
+        write_result(tiny_result, tmp_path, figures=False)
+    message = str(info.value)
+    assert "summary.json" in message and "disk is full" in message and "previous summary.json is intact" in message
+    assert (tmp_path / "summary.json").read_text() == old
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_a_full_disk_while_writing_a_figure_keeps_the_old_png(tmp_path, tiny_result, monkeypatch):
+    write_result(tiny_result, tmp_path)
+    old = (tmp_path / "history.png").read_bytes()
+
+    def half_written(self, fname, **kwargs):
+        Path(fname).write_bytes(b"\x89PNG partial")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", half_written)
+    with pytest.raises(OutputError, match=r"history\.png: the disk is full .*previous history\.png is intact"):
+        write_result(tiny_result, tmp_path)
+    assert (tmp_path / "history.png").read_bytes() == old
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_a_failed_hdf5_flush_of_a_checkpoint_is_one_checkpoint_error(tmp_path, tiny_result, monkeypatch):
+    path = tmp_path / "checkpoint.h5"
+    save_checkpoint(path, "fp", list(tiny_result.starts), None)
+    old = path.read_bytes()
+
+    def flush_failure(self, *args, **kwargs):
+        raise RuntimeError("Disable slist on flush dest failure failed (file write failed)")
+
+    monkeypatch.setattr(h5py.Group, "create_group", flush_failure)
+    with pytest.raises(CheckpointError, match=r"cannot write .*checkpoint\.h5: .*previous checkpoint\.h5 is intact"):
+        save_checkpoint(path, "fp", list(tiny_result.starts), None)
+    assert path.read_bytes() == old
+
+
+def test_a_read_only_output_folder_is_one_output_error(tmp_path, tiny_result, monkeypatch):
+    import tempfile
+
+    def read_only(*args, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system")
+
+    monkeypatch.setattr(tempfile, "mkstemp", read_only)
+    with pytest.raises(CheckpointError, match=r"result\.h5: the file system is read-only; nothing was written"):
+        write_result(tiny_result, tmp_path / "ro", figures=False)
+
+
+# item 5 -------------------------------------------------------------------------------------------------------
+
+def test_sigterm_to_a_fit_without_checkpoints_writes_the_best_state(tmp_path):
+    out = tmp_path / "run"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1]), "OMP_NUM_THREADS": "1",
+           "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
+    args = [a for a in TINY if a != "--quiet"]
+    args[args.index("--starts") + 1] = "1000"
+    args[args.index("--max-iter") + 1] = "1000"
+    proc = subprocess.Popen([sys.executable, "-m", "shspec", *args, "--out", str(out)], env=env,
+                            stderr=subprocess.PIPE, text=True)
+    # wait until the fit runs (its first line on stderr), then give it a moment inside the starts
+    first = proc.stderr.readline()
+    assert first.startswith("fitting"), first
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] is True and summary["starts"]
+    assert (out / "result.h5").is_file()
+
+
+def test_an_interrupt_between_two_starts_keeps_the_finished_ones(monkeypatch):
+    from shspec.inverse.problem import FitProblem
+
+    real = FitProblem.initial
+
+    def interrupted_at_start_1(self, rng, index):
+        if index == 1:
+            raise KeyboardInterrupt  # SIGTERM, as the CLI turns it, while start 1 is being set up
+        return real(self, rng, index)
+
+    monkeypatch.setattr(FitProblem, "initial", interrupted_at_start_1)
+    target = harmonic_target(blob_factor(), lmax=8, numeig=10)
+    result = fit(target, HarmonicModel(8, 4), FitOptions(starts=3, max_iter=2, basin_hops=0, schedule=(),
+                                                         progress=False))
+    assert result.interrupted and [r.index for r in result.starts] == [0]
