@@ -19,7 +19,7 @@ def test_round_trip_and_metadata(tmp_path):
     assert table.path == path and path.exists()
     again = load_table(10, 6, tmp_path)
     np.testing.assert_array_equal(again.values, table.values)
-    assert again.metadata["format_version"] == 1 and again.metadata["checksum"].startswith("blake2b:")
+    assert again.metadata["format_version"] == 2 and again.metadata["checksum"].startswith("blake2b:")
     assert [t.path for t in list_tables(tmp_path)] == [path]
     assert not list(tmp_path.glob("*.tmp"))
     assert verify_table(again, 300) < 1e-15

@@ -1,11 +1,12 @@
 """The on-disk cache of Gaunt tables: HDF5 files written atomically under a lock and validated on load.
 
-Schema (format version 1), one file ``gaunt_Lb{Lb}_La{La}.h5`` per table:
+Schema (format version 2), one file ``gaunt_Lb{Lb}_La{La}.h5`` per table:
 
 ================  =========================================================================================
 ``/values``       float64 dataset, the stored families in the layout of :mod:`shspec.gaunt.table`
 attr ``format``   ``"shspec-gaunt"``
-attr ``format_version``  int, 1
+attr ``format_version``  int, 2 (version 1 files hold the same layout, but a value could differ by an ulp
+                  between tables of different La, which made results depend on what was cached: rebuild them)
 attr ``lmax``     int, basis band limit Lb
 attr ``lmax_factor``  int, factor band limit La
 attr ``convention``   :data:`CONVENTION`: real orthonormal harmonics as pyshtools (ortho, csphase=1), flat index
@@ -58,7 +59,7 @@ __all__ = ["CONVENTION", "FORMAT_VERSION", "TableInfo", "TempFileInfo", "cache_d
            "save_table", "load_table", "get_table", "list_tables", "list_temporary_files", "remove_stale_files",
            "verify_table", "ensure_cache_dir"]
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 CONVENTION = "real-ortho-csphase1-pyshtools; flat i=l*l+l+m; G_ijk=int Y_i Y_j Y_k dOmega"
 _PROJECT_NAME = re.compile(r'^name\s*=\s*"shspec"\s*$', re.M)
 _NAME = re.compile(r"^gaunt_Lb(\d+)_La(\d+)\.h5$")
