@@ -127,10 +127,10 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     finished: list[StartResult] = []
     current: StartProgress | None = None
     if resume and options.checkpoint_path is not None and Path(options.checkpoint_path).exists():
-        finished, current = load_checkpoint(options.checkpoint_path, fp)
+        finished, current = load_checkpoint(options.checkpoint_path, fp, target.eigenvalues)
 
     def checkpoint(progress):
-        save_checkpoint(options.checkpoint_path, fp, finished, progress)
+        save_checkpoint(options.checkpoint_path, fp, finished, progress, target.eigenvalues)
 
     interrupted = False
     done = {r.index for r in finished}
@@ -151,7 +151,7 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
             except KeyboardInterrupt:
                 interrupted = True
                 if options.checkpoint_path:
-                    save_checkpoint(options.checkpoint_path, fp, finished, current)
+                    save_checkpoint(options.checkpoint_path, fp, finished, current, target.eigenvalues)
                 if current.params is not None:
                     finished.append(current.result("interrupted", current.seconds, options.success_tol))
                 if options.progress:
