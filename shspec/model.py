@@ -99,6 +99,10 @@ class SpectralModel(ABC):
                ) -> tuple[float, np.ndarray, Spectrum]:
         """E = ½ Σ_i w_i (λ_i − λ*_i)² and its gradient (nparams,), for a target spectrum (k,)."""
         target = np.asarray(target, dtype=float)
+        if not np.all(np.isfinite(target)):
+            bad = np.flatnonzero(~np.isfinite(target))
+            raise InvalidArgumentError(f"the target spectrum holds {target.flat[bad[0]]} at index {bad[0]} "
+                                       f"({bad.size} value(s) not finite): the energy would be NaN")
         spec = self.spectrum(params, target.size)
         w = np.ones(target.size) if weights is None else np.asarray(weights, dtype=float)
         r = spec.eigenvalues - target

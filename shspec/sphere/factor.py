@@ -17,9 +17,13 @@ from ..plotstyle import style_hammer
 from .grid import evaluate_on_grid, expand_grid, glq_grid
 from .harmonics import (as_coefficients, check_degree, lmax_of_size, vector_to_cilm, vector_to_shcoeffs)
 
-__all__ = ["ConformalFactor", "Minimum", "as_factor", "derivative_bounds", "grid_lower_bound"]
+__all__ = ["ConformalFactor", "MAX_COEFFICIENT", "Minimum", "as_factor", "derivative_bounds", "grid_lower_bound"]
 
 _SQRT_4PI = np.sqrt(4.0 * np.pi)
+
+#: Largest magnitude of a coefficient of ρ: squares, norms and products with eigenvalues (~1/ρ) then stay far from
+#: the overflow and underflow of double precision (an area of 1e100 is beyond any use of the library).
+MAX_COEFFICIENT = 1e100
 
 
 @dataclass(frozen=True)
@@ -128,6 +132,12 @@ class ConformalFactor:
 
     def __init__(self, coefficients, lmax: int | None = None, *, name: str = "rho"):
         coef = as_coefficients(coefficients, lmax)
+        big = float(np.max(np.abs(coef), initial=0.0))
+        if big > MAX_COEFFICIENT:
+            raise InvalidArgumentError(
+                f"a coefficient of rho of magnitude {big:.3g} exceeds {MAX_COEFFICIENT:g}: its squares and the mass "
+                "matrix would overflow double precision; rescale rho (the spectrum of c*rho is that of rho "
+                "divided by c)")
         self.coefficients = coef
         self.coefficients.setflags(write=False)
         self.name = str(name)
@@ -140,6 +150,9 @@ class ConformalFactor:
         area = float(area)
         if not np.isfinite(area) or area <= 0:
             raise InvalidArgumentError(f"the area must be positive and finite, got {area}")
+        if area > MAX_COEFFICIENT * _SQRT_4PI:
+            raise InvalidArgumentError(f"the area {area:g} exceeds {MAX_COEFFICIENT * _SQRT_4PI:.3g}, beyond what "
+                                       "double precision computes a spectrum for; rescale it")
         coef = np.zeros((check_degree(lmax, "lmax") + 1) ** 2)
         coef[0] = area / _SQRT_4PI
         return cls(coef, name=f"sphere(area={area:g})")
