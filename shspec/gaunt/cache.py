@@ -248,20 +248,44 @@ def _read_file(path: Path) -> GauntTable:
         except (KeyError, TypeError, ValueError) as exc:
             raise CorruptTableError(f"{path} lacks a required attribute: {exc}") from exc
         expected = table_size(have_b, have_a)
-        if count != expected or "values" not in f or f["values"].shape != (expected,):
+        stored = _values_dataset(f)
+        if count != expected or not isinstance(stored, h5py.Dataset) or stored.shape != (expected,):
             raise CorruptTableError(f"{path} should hold {expected} values for ({have_b},{have_a}); "
-                                    f"it says {count} and stores {f['values'].shape if 'values' in f else 'none'}")
+                                    f"it says {count} and stores {_describe_values(stored)}")
         try:
-            values = f["values"][...]
+            values = stored[...]
         except OSError as exc:
             raise CorruptTableError(f"{path}: the values cannot be read (truncated file?): {exc}") from exc
     if values.dtype != np.float64:
         raise CorruptTableError(f"{path}: values have dtype {values.dtype}, expected float64")
     if _checksum(values) != checksum:
         raise CorruptTableError(f"{path} fails its checksum: the file is corrupt; rebuild it (precompute --force)")
+    finite = np.isfinite(values)
+    if not finite.all():
+        # a checksum only says the file is as written; a table written with NaN in it is as unusable
+        bad = np.flatnonzero(~finite)
+        raise CorruptTableError(f"{path} holds {bad.size} values that are NaN or inf (first at position {bad[0]}): "
+                                "rebuild it (precompute --force)")
     meta = {k: (v.item() if hasattr(v, "item") else v) for k, v in attrs.items()}
     values.setflags(write=False)  # shared by every caller that loads this file
     return GauntTable(have_b, have_a, values, path=path, metadata=meta)
+
+
+def _values_dataset(f: h5py.File):
+    """The object at ``/values`` (a dataset in a sound file), or None; a dangling link counts as missing."""
+    try:
+        return f.get("values")
+    except (KeyError, OSError):
+        return None
+
+
+def _describe_values(stored) -> str:
+    """What ``/values`` is, for a message: its shape, or the kind of object that stands where a dataset should."""
+    if stored is None:
+        return "none"
+    if isinstance(stored, h5py.Dataset):
+        return str(stored.shape)
+    return f"a {type(stored).__name__.lower()} instead of a dataset"
 
 
 @dataclass(frozen=True)
@@ -313,8 +337,10 @@ def list_tables(directory: str | os.PathLike | None = None, *, verify: bool = Fa
                     problem = f"format version {f.attrs.get('format_version')}"
                 elif (int(f.attrs.get("lmax", -1)), int(f.attrs.get("lmax_factor", -1))) != (lb, la):
                     problem = "band limits in the file do not match its name"
-                elif "values" not in f or f["values"].shape != (table_size(lb, la),):
-                    problem = f"holds {f['values'].shape if 'values' in f else 'no'} values, not ({table_size(lb, la)},)"
+                else:
+                    stored = _values_dataset(f)
+                    if not isinstance(stored, h5py.Dataset) or stored.shape != (table_size(lb, la),):
+                        problem = f"stores {_describe_values(stored)} as its values, not ({table_size(lb, la)},)"
         except (OSError, ValueError, BandLimitError) as exc:
             problem = f"unreadable: {exc}"
         if problem is None and verify:
@@ -462,12 +488,12 @@ def verify_table(table: GauntTable, samples: int = 2000, seed: int = 0) -> float
         return 0.0
     rng = np.random.default_rng(seed)
     l, m = degree_order(table.lmax)
-    worst = 0.0
+    diffs = []
     for e in rng.integers(0, n, size=samples):
         t = int(rng.integers(0, plan.count[e]))
         l3 = int(plan.l3min[e]) + 2 * t
         i, j = int(plan.i[e]), int(plan.j[e])
         stored = plan.factor[e] * table.values[plan.offset[e] + t]
         fresh = real_gaunt(int(l[i]), int(m[i]), int(l[j]), int(m[j]), l3, int(plan.m3[e]))
-        worst = max(worst, abs(stored - fresh))
-    return worst
+        diffs.append(abs(stored - fresh))
+    return float(np.max(diffs, initial=0.0))  # NaN when a sampled value is NaN (max() would skip it)
