@@ -22,6 +22,7 @@ __all__ = [
     "ConvergenceError",
     "CheckpointError",
     "OutputError",
+    "SchedulerError",
     "ResourceLimitError",
     "ShspecWarning",
     "TruncationWarning",
@@ -79,6 +80,10 @@ class CheckpointError(ShspecError, OSError):
 
 class OutputError(ShspecError, OSError):
     """An output directory or file cannot be created or written (a file in the way, no permission, disk full)."""
+
+
+class SchedulerError(ShspecError, OSError):
+    """A Dask scheduler cannot be reached (nothing listens at the address, or it does not answer in time)."""
 class ResourceLimitError(BandLimitError):
     """A computation would need more memory or disk than the machine has (the message gives both and what fits)."""
 
