@@ -13,6 +13,7 @@ import math
 import numba as nb
 import numpy as np
 
+from ..threads import serialized
 from .table import GauntTable, _balanced_rows, _block_families, _block_offsets, check_limits
 from .wigner import factorial_table, family_into, family_upto_into
 
@@ -46,6 +47,7 @@ def _fill_row(l1, lmax, lmax_factor, off, values, w0, w, wfull, fh, fl, fe):
             pos += cnt
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _fill_rows(rows, lmax, lmax_factor, off, values, fh, fl, fe):
     for r in nb.prange(rows.size):

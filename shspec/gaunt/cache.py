@@ -35,6 +35,7 @@ import fcntl
 import hashlib
 import os
 import re
+import threading
 import time
 import warnings
 from collections import OrderedDict
@@ -204,19 +205,21 @@ def _write(table: GauntTable, path: Path, build_seconds: float) -> Path:
 #: changes; the few most recent are kept (with their assembly plans, which cost as much as the read).
 _MEMORY: "OrderedDict[tuple, GauntTable]" = OrderedDict()
 _MEMORY_ENTRIES = 4
+_MEMORY_LOCK = threading.Lock()
 
 
 def _read(path: Path, lmax: int | None = None, lmax_factor: int | None = None) -> GauntTable:
     """The validated table in ``path``, from memory when the file has not changed since it was read."""
     stat = path.stat()
     key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
-    table = _MEMORY.get(key)
-    if table is None:
-        table = _read_file(path)
-        _MEMORY[key] = table
-        while len(_MEMORY) > _MEMORY_ENTRIES:
-            _MEMORY.popitem(last=False)
-    _MEMORY.move_to_end(key)
+    with _MEMORY_LOCK:  # threads share the memory (and read a file once between them)
+        table = _MEMORY.get(key)
+        if table is None:
+            table = _read_file(path)
+            _MEMORY[key] = table
+            while len(_MEMORY) > _MEMORY_ENTRIES:
+                _MEMORY.popitem(last=False)
+        _MEMORY.move_to_end(key)
     if lmax is not None and (table.lmax, table.lmax_factor) != (lmax, lmax_factor):
         raise TableMismatchError(f"{path} holds the table ({table.lmax},{table.lmax_factor}), not "
                                  f"({lmax},{lmax_factor})")

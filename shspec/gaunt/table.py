@@ -21,6 +21,7 @@ import numba as nb
 import numpy as np
 
 from ..errors import BandLimitError, InvalidArgumentError
+from ..threads import serialized
 from .real_gaunt import order_factor
 from ..sphere.harmonics import check_degree, ncoeffs
 
@@ -200,6 +201,7 @@ class _Plan:
 # kernels
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _assemble_upper(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, coef, out):
     for r in nb.prange(rows.size):
@@ -215,6 +217,7 @@ def _assemble_upper(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, co
             out[ei[e], ej[e]] += efac[e] * acc
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _contract(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, bmat, nfactor, nchunks):
     # one partial sum per chunk of rows (chunks interleave the rows, which come sorted by work, to balance them)
@@ -237,6 +240,7 @@ def _contract(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, bmat, nf
     return part.sum(axis=0)
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _quad_forms(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, vecs, nfactor, nchunks):
     # out[k, q] = v_qᵀ G_k v_q for each column q of vecs; rows of vecs are basis indices
@@ -264,6 +268,7 @@ def _quad_forms(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, vecs, 
     return part.sum(axis=0)
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _mirror_upper(out):
     # copy the strict upper triangle into the lower one; each thread writes whole rows
@@ -273,6 +278,7 @@ def _mirror_upper(out):
             out[i, j] = out[j, i]
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _restrict(rows, lmax, lmax_factor, off_small, big_factor, off_big, big_values, out):
     for r in nb.prange(rows.size):

@@ -97,7 +97,8 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
         :func:`shspec.parallel.make_executor`): each start is independent and seeded by its index, so the results are
         those of a serial run.  Finished starts are checkpointed as they arrive; a start still running when the
         fit stops is run again from its beginning on resume.  Run at most one start per process at a time
-        (processes, or Dask workers with one thread each): pyshtools' grid routines are not thread-safe.
+        (processes, or Dask workers with one thread each): threads are safe (:mod:`shspec.threads`), but they take
+        turns in pyshtools' grid routines and numba's parallel kernels.
 
     Returns
     -------

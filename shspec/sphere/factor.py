@@ -14,6 +14,7 @@ import scipy.optimize
 
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..plotstyle import style_hammer
+from ..threads import PYSHTOOLS_LOCK
 from .grid import evaluate_on_grid, expand_grid, glq_grid
 from .harmonics import (as_coefficients, check_degree, lmax_of_size, vector_to_cilm, vector_to_shcoeffs)
 
@@ -250,7 +251,8 @@ class ConformalFactor:
 
     def rotated(self, alpha: float, beta: float, gamma: float) -> "ConformalFactor":
         """ρ∘R⁻¹ for the rotation with Euler angles (z-y-z, degrees) of pyshtools ``SHCoeffs.rotate(body=True)``."""
-        rot = self.to_shcoeffs().rotate(alpha, beta, gamma, degrees=True, body=True)
+        with PYSHTOOLS_LOCK:
+            rot = self.to_shcoeffs().rotate(alpha, beta, gamma, degrees=True, body=True)
         return ConformalFactor(rot, self.lmax, name=f"rotated {self.name}")
 
     def evaluate(self, grid_lmax: int | None = None) -> tuple[np.ndarray, "object"]:
@@ -353,7 +355,8 @@ class ConformalFactor:
 
         def rho(uv):
             lat, lo = point(uv)
-            return float(pyshtools.expand.MakeGridPoint(cilm, lat, lo, norm=4, csphase=1))
+            with PYSHTOOLS_LOCK:
+                return float(pyshtools.expand.MakeGridPoint(cilm, lat, lo, norm=4, csphase=1))
 
         res = scipy.optimize.minimize(rho, np.zeros(2), method="Nelder-Mead",
                                       options={"xatol": 1e-9, "fatol": 1e-14, "initial_simplex":
