@@ -23,6 +23,7 @@ __all__ = [
     "CheckpointError",
     "OutputError",
     "SchedulerError",
+    "UnsafeForkError",
     "ResourceLimitError",
     "ShspecWarning",
     "TruncationWarning",
@@ -84,6 +85,10 @@ class OutputError(ShspecError, OSError):
 
 class SchedulerError(ShspecError, OSError):
     """A Dask scheduler cannot be reached (nothing listens at the address, or it does not answer in time)."""
+
+
+class UnsafeForkError(ShspecError, RuntimeError):
+    """A forked process cannot run numba's parallel kernels: its parent ran them on GNU OpenMP, which dies on fork."""
 class ResourceLimitError(BandLimitError):
     """A computation would need more memory or disk than the machine has (the message gives both and what fits)."""
 

@@ -9,6 +9,8 @@ import sys
 import textwrap
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 THREADS = """
@@ -70,9 +72,31 @@ print("ok")
 """
 
 
-def _run(code: str, timeout: float, threads: int = 2) -> subprocess.CompletedProcess:
+FORK_ON_GNU_OPENMP = """
+import multiprocessing
+
+from shspec.galerkin import spectrum
+from shspec.inverse import blob_factor
+
+
+def job(scale):
+    return spectrum(blob_factor().scaled(scale), 8, 6, truncation_tol=None).eigenvalues
+
+
+job(1.0)
+with multiprocessing.get_context("fork").Pool(2) as pool:
+    try:
+        pool.map(job, [1.0, 2.0])
+    except Exception as exc:
+        print(type(exc).__name__)
+"""
+
+
+def _run(code: str, timeout: float, threads: int = 2, layer: str | None = None) -> subprocess.CompletedProcess:
     env = dict(os.environ, PYTHONPATH=str(ROOT), NUMBA_NUM_THREADS=str(threads), OMP_NUM_THREADS="1")
     env.pop("NUMBA_THREADING_LAYER", None)
+    if layer is not None:
+        env["NUMBA_THREADING_LAYER"] = layer
     return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], env=env, capture_output=True, text=True,
                           timeout=timeout)
 
@@ -88,3 +112,10 @@ def test_a_forked_pool_after_a_spectrum_in_the_parent_works():
     # OpenMP, this is unsafe") and Pool.map waited for ever
     done = _run(FORK, timeout=60)
     assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr[-2000:]
+
+
+def test_a_fork_after_gnu_openmp_fails_in_the_child_with_a_clear_error():
+    # chosen by the user, GNU OpenMP still cannot survive a fork: the child now raises instead of being killed
+    pytest.importorskip("numba.np.ufunc.omppool")
+    done = _run(FORK_ON_GNU_OPENMP, timeout=60, layer="omp")
+    assert done.returncode == 0 and done.stdout.strip() == "UnsafeForkError", done.stderr[-2000:]
