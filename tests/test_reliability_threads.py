@@ -36,6 +36,7 @@ def job(p):
     a, grid = p
     rho = ConformalFactor(a)
     return (model.spectrum(a, 20).eigenvalues, model.eigenvalues(a, 12), model.energy(a, np.arange(20.0))[1],
+            model.jacobian(model.spectrum(a, 12)),
             rho.evaluate(grid)[0], rho.check_positive().value, rho.rotated(10, 20, 30).coefficients,
             spectrum(a, 10, 8, truncation_tol=None).eigenvalues)
 
