@@ -32,9 +32,9 @@ def _fill_row(l1, lmax, lmax_factor, off, values, w0, w, wfull, fh, fl, fe):
             cnt = fcnt[f]
             if cnt == 0:
                 continue
-            # only l3 <= La is stored: the forward recursion stops there where it is stable (see
-            # shspec.gaunt.wigner); values past the point where it stops come from the two-sided family.  Which
-            # path a value takes depends on its l3 only, not on La, so every table holds the same bits for it.
+            # only l3 <= La is stored: the forward recursion runs up to there, or up to where the family (not La)
+            # makes it unstable (see shspec.gaunt.wigner), and the values past that point come from the two-sided
+            # family.  Which path a value takes depends on its l3 only, so every table holds the same bits for it.
             top = fl3[f] + 2 * (cnt - 1)
             jmin, n, ok = family_upto_into(l1, l2, fa[f], fmu2[f], top, w, fh, fl, fe)
             if not ok:

@@ -267,7 +267,7 @@ def _first_symbol(j2, j3, m2, m3, jmin, fh, fl, fe):
 
 @nb.njit(cache=True, nogil=True)
 def family_upto_into(j2, j3, m2, m3, jtop, out, fh, fl, fe):
-    """The family from jmin up to ``jtop`` (< jmax) by the forward recursion from the exact first symbol.
+    """The family from jmin up to ``jtop`` by the forward recursion from the exact first symbol, as far as it is stable.
 
     Returns (jmin, n, ok): ``out[0:n]`` holds w(jmin … jmin + n − 1).  ok is True when that is the whole range up to
     ``jtop``; otherwise the recursion reached the upper forbidden region (or jtop = jmax, or jmin = 0, where the
