@@ -89,6 +89,8 @@ class SchedulerError(ShspecError, OSError):
 
 class UnsafeForkError(ShspecError, RuntimeError):
     """A forked process cannot run numba's parallel kernels: its parent ran them on GNU OpenMP, which dies on fork."""
+
+
 class ResourceLimitError(BandLimitError):
     """A computation would need more memory or disk than the machine has (the message gives both and what fits)."""
 

@@ -12,7 +12,8 @@ meant for parallel fit starts too), so that a caller writes the loop once agains
 * ``scheduler=ADDRESS``: the executor of a Dask distributed cluster (``distributed.Client(ADDRESS).get_executor()``;
   ADDRESS like ``tcp://host:8786``, or a ``LocalCluster``'s ``scheduler_address``).  The workers' thread counts are
   the cluster's business (``dask worker --nthreads 1`` and OMP_NUM_THREADS=1 in their environment); shutting the
-  executor down closes the client, not the cluster.
+  executor down closes the client, not the cluster.  An address where nothing listens fails at once, one that
+  does not answer after :data:`CONNECT_TIMEOUT` seconds, both with a :class:`~shspec.errors.SchedulerError`.
 
 Jobs must be picklable: module-level functions with picklable arguments and results.
 """
