@@ -58,6 +58,9 @@ _FORKED_AFTER_GNU_OPENMP = False
 def _after_fork_in_child() -> None:
     global _FORKED_AFTER_GNU_OPENMP
     _FORKED_AFTER_GNU_OPENMP = _gnu_openmp_ran()
+    # a lock another thread of the parent held at the fork would stay held in the child for ever (as logging does)
+    PYSHTOOLS_LOCK._at_fork_reinit()
+    NUMBA_LOCK._at_fork_reinit()
 
 
 os.register_at_fork(after_in_child=_after_fork_in_child)

@@ -120,3 +120,41 @@ def test_a_fork_after_gnu_openmp_fails_in_the_child_with_a_clear_error():
     pytest.importorskip("numba.np.ufunc.omppool")
     done = _run(FORK_ON_GNU_OPENMP, timeout=60, layer="omp")
     assert done.returncode == 0 and done.stdout.strip() == "UnsafeForkError", done.stderr[-2000:]
+
+
+FORK_WHILE_LOCKED = """
+import os
+import signal
+import threading
+
+from shspec import threads
+from shspec.galerkin import spectrum
+from shspec.inverse import blob_factor
+
+spectrum(blob_factor(), 8, 6, truncation_tol=None)
+held, release = threading.Event(), threading.Event()
+
+
+def hold():
+    with threads.PYSHTOOLS_LOCK, threads.NUMBA_LOCK:
+        held.set()
+        release.wait()
+
+
+worker = threading.Thread(target=hold)
+worker.start()
+held.wait()
+pid = os.fork()
+if pid == 0:
+    signal.alarm(20)  # a deadlocked child dies instead of outliving the test
+    spectrum(blob_factor(), 8, 6, truncation_tol=None)  # would wait for ever for the parent thread's locks
+    os._exit(0)
+release.set()
+worker.join()
+print("ok" if os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) == 0 else "child failed")
+"""
+
+
+def test_a_fork_while_another_thread_holds_the_locks_does_not_deadlock_the_child():
+    done = _run(FORK_WHILE_LOCKED, timeout=60)
+    assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr[-2000:]

@@ -206,6 +206,7 @@ def _write(table: GauntTable, path: Path, build_seconds: float) -> Path:
 _MEMORY: "OrderedDict[tuple, GauntTable]" = OrderedDict()
 _MEMORY_ENTRIES = 4
 _MEMORY_LOCK = threading.Lock()
+os.register_at_fork(after_in_child=_MEMORY_LOCK._at_fork_reinit)  # a thread of the parent may have held it
 
 
 def _read(path: Path, lmax: int | None = None, lmax_factor: int | None = None) -> GauntTable:
