@@ -39,6 +39,10 @@ def test_a_target_moved_by_ulps_still_resumes(tmp_path, monkeypatch):
     moved = dataclasses.replace(target, eigenvalues=np.nextafter(target.eigenvalues, np.inf))
     resumed = fit(moved, model, opts, resume=True)
     assert not resumed.interrupted and len(resumed.starts) == 1
+    # it goes on with the checkpoint's target, and ends where the uninterrupted fit ends
+    assert np.array_equal(resumed.target.eigenvalues, target.eigenvalues)
+    whole = fit(target, model, dataclasses.replace(opts, checkpoint_path=str(tmp_path / "whole.h5")))
+    assert np.array_equal(resumed.best.params, whole.best.params) and resumed.best.energy == whole.best.energy
 
 
 def test_another_target_is_still_refused(tmp_path, monkeypatch):

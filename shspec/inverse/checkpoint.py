@@ -5,7 +5,8 @@ optimizer's state after its last completed iteration and the history), plus a fi
 that change the computation, model, number of target eigenvalues) and the target spectrum itself.  Resuming checks
 the fingerprint, compares the target spectrum to round-off (:data:`TARGET_RTOL`; a computed target such as the
 built-in blob may move by a few ulps with the machine or library versions, and that is not another fit) and continues
-the running start from that state: the optimizers are deterministic, so the result is the one of an uninterrupted run.  Files
+the running start from that state, on the checkpoint's own target: the optimizers are deterministic, so the result
+is the one of an uninterrupted run.  Files
 are written atomically (:mod:`shspec.atomic`: a temporary file, fsynced, renamed), so a crash while writing never
 leaves a truncated checkpoint; and every file carries a BLAKE2b checksum of all its datasets and attributes, checked on reading, so a
 damaged file is refused by name instead of silently changing a resumed fit.
@@ -154,7 +155,9 @@ def save_checkpoint(path, fp: str, finished: list, progress, target_eigenvalues)
 
 
 def load_checkpoint(path, fp: str, target_eigenvalues):
-    """Read a checkpoint written by :func:`save_checkpoint`: (finished starts, running progress or None).
+    """Read a checkpoint written by :func:`save_checkpoint`: (finished starts, running progress or None, the target
+    eigenvalues the checkpointed fit ran on — equal to ``target_eigenvalues`` to round-off, and what a resumed fit
+    goes on with, so that it ends as the uninterrupted one would have).
 
     Raises
     ------
@@ -170,7 +173,8 @@ def load_checkpoint(path, fp: str, target_eigenvalues):
             if f.attrs.get("fingerprint") != fp:
                 raise CheckpointError(f"{path} is the checkpoint of another fit (options, model or number of target "
                                       "eigenvalues differ)")
-            _check_target(path, f["target"][()], np.asarray(target_eigenvalues, dtype=float))
+            stored = f["target"][()]
+            _check_target(path, stored, np.asarray(target_eigenvalues, dtype=float))
             finished = sorted((_read_start(g) for g in f["finished"].values()), key=lambda r: r.index)
             progress = None
             if "current" in f:
@@ -186,7 +190,7 @@ def load_checkpoint(path, fp: str, target_eigenvalues):
         raise
     except Exception as exc:
         raise CheckpointError(f"cannot read the checkpoint {path}: {exc}") from exc
-    return finished, progress
+    return finished, progress, stored
 
 
 def _check_target(path, stored: np.ndarray, target: np.ndarray) -> None:

@@ -7,6 +7,7 @@ BLAS threads); each writes checkpoints if asked, and Ctrl-C ends the fit cleanly
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import sys
 from concurrent.futures import Executor, as_completed
@@ -128,7 +129,10 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     finished: list[StartResult] = []
     current: StartProgress | None = None
     if resume and options.checkpoint_path is not None and Path(options.checkpoint_path).exists():
-        finished, current = load_checkpoint(options.checkpoint_path, fp, target.eigenvalues)
+        finished, current, stored = load_checkpoint(options.checkpoint_path, fp, target.eigenvalues)
+        if not np.array_equal(stored, target.eigenvalues):  # round-off apart: go on with the checkpoint's own
+            target = dataclasses.replace(target, eigenvalues=stored)  # target, as the uninterrupted fit did
+            problem = FitProblem(model, target, options, init=init)
 
     def checkpoint(progress):
         save_checkpoint(options.checkpoint_path, fp, finished, progress, target.eigenvalues)
