@@ -338,7 +338,8 @@ def list_tables(directory: str | os.PathLike | None = None, *, verify: bool = Fa
                 count = int(f.attrs.get("count", -1))
                 created = str(f.attrs.get("created", ""))
                 if f.attrs.get("format_version") != FORMAT_VERSION:
-                    problem = f"format version {f.attrs.get('format_version')}"
+                    problem = (f"format version {f.attrs.get('format_version')}, this shspec reads {FORMAT_VERSION}: "
+                               "rebuild it (precompute --force)")
                 elif (int(f.attrs.get("lmax", -1)), int(f.attrs.get("lmax_factor", -1))) != (lb, la):
                     problem = "band limits in the file do not match its name"
                 else:
