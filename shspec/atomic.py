@@ -12,6 +12,11 @@ writes its results through: on a full disk, a read-only folder or a missing perm
 :class:`~shspec.errors.OutputError` that names the file, says why in words, and says that the previous file is
 intact (or that none was written), instead of a raw ``OSError`` or a half-written file.
 
+A Ctrl-C (SIGINT) during a write is held back to the next point where the write checks for it, and raised there,
+so the temporary file is always removed: raised where Python's handler would raise it, it could land in a weakref
+callback or ``__del__`` of h5py's object registry, where Python prints "Exception ignored" and drops it, and the
+write then finished and the command exited 0.
+
 Files are created with the mode ``mode & ~umask`` (0644 under the usual umask 022), like any file a program
 writes, not with the 0600 of :func:`tempfile.mkstemp`, so that a shared folder stays readable to its users.
 """
@@ -22,7 +27,9 @@ import contextlib
 import errno
 import glob
 import os
+import signal
 import tempfile
+import threading
 from pathlib import Path
 from typing import Iterator
 
@@ -65,6 +72,37 @@ def _fsync_dir(directory: Path) -> None:
 
 
 @contextlib.contextmanager
+def _held_interrupts() -> Iterator:
+    """Hold SIGINT back while the block runs; yields ``check()``, which hands a held signal to the previous handler
+    (Python's raises KeyboardInterrupt) at a point of the caller's choosing.  The exit of the block checks too.
+
+    Only the main thread can set signal handlers (and only it receives them); elsewhere, and when SIGINT is ignored
+    or left to the system, nothing is held and ``check()`` does nothing.
+    """
+    previous = (signal.getsignal(signal.SIGINT) if threading.current_thread() is threading.main_thread() else None)
+    if not callable(previous):
+        yield lambda: None
+        return
+    held = []
+
+    def hold(signum, frame):
+        held.append((signum, frame))
+
+    def check():
+        if held:
+            signum, frame = held.pop()
+            held.clear()
+            previous(signum, frame)
+
+    signal.signal(signal.SIGINT, hold)
+    try:
+        yield check
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        check()  # also after an error in the block: the user asked to stop
+
+
+@contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, *, mode: int = 0o644) -> Iterator[Path]:
     """Context manager giving a temporary path to write; on success it replaces ``path`` atomically.
 
@@ -93,23 +131,26 @@ def atomic_path(path: str | os.PathLike, *, mode: int = 0o644) -> Iterator[Path]
     ...     tmp.write_text(json.dumps(record))
     """
     path = Path(path)
-    fd, name = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=TEMP_SUFFIX)
-    tmp = Path(name)
-    try:
-        os.fchmod(fd, umask_mode(mode))
-        os.close(fd)
-        fd = -1
-        yield tmp
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if fd >= 0:
+    with _held_interrupts() as check_interrupt:
+        fd, name = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=TEMP_SUFFIX)
+        tmp = Path(name)
+        try:
+            os.fchmod(fd, umask_mode(mode))
             os.close(fd)
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-    _fsync_dir(path.parent)
+            fd = -1
+            check_interrupt()
+            yield tmp
+            with open(tmp, "rb+") as fh:
+                os.fsync(fh.fileno())
+            check_interrupt()  # the last moment to give up: after it the new content replaces the old
+            os.replace(tmp, path)
+        except BaseException:
+            if fd >= 0:
+                os.close(fd)
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+            raise
+        _fsync_dir(path.parent)
 
 
 @contextlib.contextmanager

@@ -17,11 +17,14 @@ __all__ = [
     "CacheError",
     "CorruptTableError",
     "TableMismatchError",
+    "OutdatedTableError",
     "CacheLocationError",
     "MeshError",
     "ConvergenceError",
     "CheckpointError",
     "OutputError",
+    "SchedulerError",
+    "UnsafeForkError",
     "ResourceLimitError",
     "ShspecWarning",
     "TruncationWarning",
@@ -61,6 +64,11 @@ class TableMismatchError(CacheError):
     """A cached table is valid but not the one asked for (format version, band limits, convention)."""
 
 
+class OutdatedTableError(TableMismatchError):
+    """A cached table was written in an older format by an older shspec: :func:`~shspec.gaunt.cache.get_table`
+    rebuilds it, with a warning."""
+
+
 class CacheLocationError(CacheError):
     """The cache directory cannot be used: it is a file, read-only, or the disk is full."""
 
@@ -79,6 +87,16 @@ class CheckpointError(ShspecError, OSError):
 
 class OutputError(ShspecError, OSError):
     """An output directory or file cannot be created or written (a file in the way, no permission, disk full)."""
+
+
+class SchedulerError(ShspecError, OSError):
+    """A Dask scheduler cannot be reached (nothing listens at the address, or it does not answer in time)."""
+
+
+class UnsafeForkError(ShspecError, RuntimeError):
+    """A forked process cannot run numba's parallel kernels: its parent ran them on GNU OpenMP, which dies on fork."""
+
+
 class ResourceLimitError(BandLimitError):
     """A computation would need more memory or disk than the machine has (the message gives both and what fits)."""
 

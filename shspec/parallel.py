@@ -12,7 +12,8 @@ meant for parallel fit starts too), so that a caller writes the loop once agains
 * ``scheduler=ADDRESS``: the executor of a Dask distributed cluster (``distributed.Client(ADDRESS).get_executor()``;
   ADDRESS like ``tcp://host:8786``, or a ``LocalCluster``'s ``scheduler_address``).  The workers' thread counts are
   the cluster's business (``dask worker --nthreads 1`` and OMP_NUM_THREADS=1 in their environment); shutting the
-  executor down closes the client, not the cluster.
+  executor down closes the client, not the cluster.  An address where nothing listens fails at once, one that
+  does not answer after :data:`CONNECT_TIMEOUT` seconds, both with a :class:`~shspec.errors.SchedulerError`.
 
 Jobs must be picklable: module-level functions with picklable arguments and results.
 """
@@ -21,15 +22,19 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import socket
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 
 from .checks import check_int
-from .errors import InvalidArgumentError
+from .errors import InvalidArgumentError, SchedulerError
 
-__all__ = ["SerialExecutor", "DaskExecutor", "make_executor", "THREAD_VARIABLES"]
+__all__ = ["SerialExecutor", "DaskExecutor", "make_executor", "THREAD_VARIABLES", "CONNECT_TIMEOUT"]
 
 #: Environment variables that cap the thread pools of BLAS/OpenMP libraries loaded after they are set.
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+#: Seconds to wait for a Dask scheduler to answer before giving up (distributed's own default is 30).
+CONNECT_TIMEOUT = 10.0
 
 # The limiter of a worker process stays alive as long as the process.
 _LIMITS = []
@@ -68,6 +73,25 @@ class SerialExecutor(Executor):
         self._shutdown = True
 
 
+def _probe(address: str, timeout: float) -> None:
+    """Fail at once when nothing listens at a TCP scheduler address: distributed retries a refused connection
+    until its timeout, then raises with a traceback of its own."""
+    from distributed.comm import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(address)
+        if scheme != "tcp":
+            return  # other transports (tls, inproc, ucx) are left to distributed
+        host, port = parse_host_port(location)
+    except (ValueError, TypeError) as exc:
+        raise SchedulerError(f"{address!r} is not a Dask scheduler address (tcp://host:port): {exc}") from None
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        reason = "no answer" if isinstance(exc, TimeoutError) else exc.strerror or str(exc)
+        raise SchedulerError(f"cannot reach the Dask scheduler at {address}: {reason}") from None
+
+
 class DaskExecutor(Executor):
     """The Executor of a Dask distributed client; ``shutdown`` also closes the client it owns.
 
@@ -75,12 +99,26 @@ class DaskExecutor(Executor):
     ----------
     address : str
         Scheduler address (``tcp://host:port``).
+    timeout : float
+        Seconds to wait for the scheduler to answer.
+
+    Raises
+    ------
+    SchedulerError
+        Nothing answers at ``address`` within ``timeout`` seconds, or the address cannot be parsed.
     """
 
-    def __init__(self, address: str):
+    def __init__(self, address: str, *, timeout: float = CONNECT_TIMEOUT):
         from distributed import Client
 
-        self.client = Client(address)
+        _probe(address, timeout)
+        try:
+            self.client = Client(address, timeout=timeout)
+        except OSError as exc:  # distributed's TimeoutError is one
+            raise SchedulerError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+        except Exception as exc:  # noqa: BLE001 - whatever answered there does not speak Dask (seen: MemoryError)
+            raise SchedulerError(f"the server at {address} does not answer as a Dask scheduler: "
+                                 f"{type(exc).__name__}: {str(exc)[:200]}") from None
         self._executor = self.client.get_executor()
 
     def submit(self, fn, /, *args, **kwargs) -> Future:
@@ -94,7 +132,8 @@ class DaskExecutor(Executor):
         self.client.close()
 
 
-def make_executor(workers: int | None = None, scheduler: str | None = None) -> Executor:
+def make_executor(workers: int | None = None, scheduler: str | None = None, *,
+                  connect_timeout: float = CONNECT_TIMEOUT) -> Executor:
     """An Executor for independent jobs: serial, a process pool of ``workers``, or a Dask cluster (module notes).
 
     Parameters
@@ -103,6 +142,8 @@ def make_executor(workers: int | None = None, scheduler: str | None = None) -> E
         Number of worker processes (≥ 1; 1 is serial).  Not together with ``scheduler``.
     scheduler : str, optional
         Address of a Dask distributed scheduler.
+    connect_timeout : float
+        Seconds to wait for the scheduler to answer.
 
     Returns
     -------
@@ -113,6 +154,8 @@ def make_executor(workers: int | None = None, scheduler: str | None = None) -> E
     ------
     InvalidArgumentError
         If ``workers`` is not a positive integer, ``scheduler`` not a non-empty string, or both are given.
+    SchedulerError
+        If nothing answers at ``scheduler`` within ``connect_timeout`` seconds.
     """
     if workers is not None:
         workers = check_int(workers, "workers", minimum=1, maximum=4096)
@@ -121,7 +164,7 @@ def make_executor(workers: int | None = None, scheduler: str | None = None) -> E
             raise InvalidArgumentError(f"scheduler must be an address string, got {scheduler!r}")
         if workers is not None:
             raise InvalidArgumentError("give workers (a local process pool) or scheduler (a Dask cluster), not both")
-        return DaskExecutor(scheduler.strip())
+        return DaskExecutor(scheduler.strip(), timeout=connect_timeout)
     if workers is None or workers == 1:
         return SerialExecutor()
     return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),

@@ -101,6 +101,10 @@ class SpectralModel(ABC):
         target = real_array(target, "target spectrum")
         if target.ndim != 1 or target.size == 0:
             raise InvalidArgumentError(f"the target spectrum must be a non-empty (k,) array, got shape {target.shape}")
+        if not np.all(np.isfinite(target)):
+            bad = np.flatnonzero(~np.isfinite(target))
+            raise InvalidArgumentError(f"the target spectrum holds {target.flat[bad[0]]} at index {bad[0]} "
+                                       f"({bad.size} value(s) not finite): the energy would be NaN")
         w = np.ones(target.size) if weights is None else real_array(weights, "weights")
         if w.shape != target.shape:
             raise InvalidArgumentError(f"weights must have the target's shape {target.shape}, got {w.shape}")

@@ -17,7 +17,7 @@ import shspec
 #: The one declaration of the layer order, bottom first.
 LAYERS = (
     ("_version", "errors"),
-    ("checks", "atomic"),
+    ("checks", "atomic", "threads"),
     ("outputs", "resources", "damping", "plotstyle", "parallel", "report"),
     ("spectral_model", "sphere", "spectrum_file"),
     ("gaunt",),

@@ -29,7 +29,11 @@ from ..errors import InvalidArgumentError, MeshError, NotPositiveError
 from ..mesh.cotan import cotan_stiffness, vertex_areas
 from ..mesh.triangle_mesh import TriangleMesh
 
-__all__ = ["mesh_edges", "target_edge_lengths", "smooth_factors", "check_factors", "check_sphere"]
+__all__ = ["mesh_edges", "target_edge_lengths", "smooth_factors", "check_factors", "check_sphere", "MAX_FACTOR_RANGE"]
+
+#: Largest ratio of the largest to the smallest factor an embedding accepts: lengths then span 1e50 and the weights
+#: 1/ℓ² of its Gauss–Newton matrix 1e100, inside double precision (a ratio of 1e150 made the matrix singular).
+MAX_FACTOR_RANGE = 1e100
 
 
 def check_sphere(sphere, atol: float = 1e-6) -> TriangleMesh:
@@ -56,7 +60,7 @@ def check_factors(factors, n: int) -> np.ndarray:
     Raises
     ------
     InvalidArgumentError
-        Wrong shape, NaN or inf.
+        Wrong shape, NaN or inf, or factors spanning more than :data:`MAX_FACTOR_RANGE`.
     NotPositiveError
         A factor ≤ 0 (not a metric).
     """
@@ -71,6 +75,11 @@ def check_factors(factors, n: int) -> np.ndarray:
     if np.any(c <= 0):
         bad = np.flatnonzero(c <= 0)
         raise NotPositiveError(f"{bad.size} conformal factors are <= 0 (first: vertex {bad[0]}, c = {c[bad[0]]:.3g})")
+    hi, lo = int(np.argmax(c)), int(np.argmin(c))
+    if c[hi] / c[lo] > MAX_FACTOR_RANGE:
+        raise InvalidArgumentError(
+            f"the factors span {c[hi] / c[lo]:.3g} (vertex {lo}: {c[lo]:.3g}, vertex {hi}: {c[hi]:.3g}), more than "
+            f"{MAX_FACTOR_RANGE:g}: the weights 1/length^2 of the embedding would overflow double precision")
     return c
 
 

@@ -24,6 +24,7 @@ from ..checks import check_int
 from ..errors import InvalidArgumentError
 from ..sphere.grid import glq_grid
 from ..sphere.harmonics import check_degree, ncoeffs
+from ..threads import PYSHTOOLS_LOCK
 
 __all__ = ["GridQuadraticForms"]
 
@@ -45,7 +46,8 @@ class GridQuadraticForms:
         grid = glq_grid(-(-(2 * self.lmax + self.lmax_factor) // 2))
         self.grid = grid
         lp = max(self.lmax, self.lmax_factor)
-        plm = np.stack([pyshtools.legendre.PlmON(lp, z, csphase=1) for z in grid.zero])  # (nlat, nplm)
+        with PYSHTOOLS_LOCK:
+            plm = np.stack([pyshtools.legendre.PlmON(lp, z, csphase=1) for z in grid.zero])  # (nlat, nplm)
         lon = grid.lon
         self._basis = [self._order_block(plm, self.lmax, m) for m in range(-self.lmax, self.lmax + 1)]
         self._trig_basis = np.stack([_trig(m, lon) for m in range(-self.lmax, self.lmax + 1)])  # (2Lb+1, nlon)

@@ -26,6 +26,7 @@ from ..sphere.factor import ConformalFactor
 from ..sphere.harmonics import check_degree, degree_order, degrees, ncoeffs
 from ..sphere.random import random_centred_coefficients, random_coefficients
 from ..sphere.rotate import power_spectrum, rotate_coefficients
+from ..threads import serialized
 from .eigen import cold_eigh, guard_count, warm_eigh
 from .gridforms import GridQuadraticForms
 from .truncation import TruncationEstimate, basis_degree_for
@@ -38,6 +39,7 @@ __all__ = ["HarmonicModel", "SpectrumResult", "WARM_GATE", "forward_need"]
 WARM_GATE = 1e-8
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _schur_scaled_upper(m_upper, dinv, out):
     """Upper triangle of H = D⁻¹ (M_rr − m mᵀ/M₀₀) D⁻¹ from the upper triangle of M, into out (N−1, N−1)."""

@@ -13,6 +13,7 @@ import math
 import numba as nb
 import numpy as np
 
+from ..threads import serialized
 from .table import GauntTable, _balanced_rows, _block_families, _block_offsets, check_limits
 from .wigner import factorial_table, family_into, family_upto_into
 
@@ -22,7 +23,7 @@ _INV_4PI = 1.0 / (4.0 * math.pi)
 
 
 @nb.njit(cache=True, nogil=True)
-def _fill_row(l1, lmax, lmax_factor, off, values, w0, w, fh, fl, fe):
+def _fill_row(l1, lmax, lmax_factor, off, values, w0, w, wfull, fh, fl, fe):
     for l2 in range(l1, min(lmax, l1 + lmax_factor) + 1):
         pos = off[l1, l2]
         jmin0 = family_into(l1, l2, 0, 0, w0)[0]
@@ -31,24 +32,29 @@ def _fill_row(l1, lmax, lmax_factor, off, values, w0, w, fh, fl, fe):
             cnt = fcnt[f]
             if cnt == 0:
                 continue
-            # only l3 <= La is stored: stop the recursion there when it is stable to (see shspec.gaunt.wigner)
+            # only l3 <= La is stored: the forward recursion runs up to there, or up to where the family (not La)
+            # makes it unstable (see shspec.gaunt.wigner), and the values past that point come from the two-sided
+            # family.  Which path a value takes depends on its l3 only, so every table holds the same bits for it.
             top = fl3[f] + 2 * (cnt - 1)
             jmin, n, ok = family_upto_into(l1, l2, fa[f], fmu2[f], top, w, fh, fl, fe)
             if not ok:
-                jmin = family_into(l1, l2, fa[f], fmu2[f], w)[0]
+                family_into(l1, l2, fa[f], fmu2[f], wfull)
             for t in range(cnt):
                 l3 = fl3[f] + 2 * t
                 pref = math.sqrt((2.0 * l1 + 1.0) * (2.0 * l2 + 1.0) * (2.0 * l3 + 1.0) * _INV_4PI)
-                values[pos + t] = pref * w0[l3 - jmin0] * w[l3 - jmin]
+                k = l3 - jmin
+                values[pos + t] = pref * w0[l3 - jmin0] * (w[k] if k < n else wfull[k])
             pos += cnt
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _fill_rows(rows, lmax, lmax_factor, off, values, fh, fl, fe):
     for r in nb.prange(rows.size):
         w0 = np.empty(2 * lmax + 1)
         w = np.empty(2 * lmax + 1)
-        _fill_row(rows[r], lmax, lmax_factor, off, values, w0, w, fh, fl, fe)
+        wfull = np.empty(2 * lmax + 1)
+        _fill_row(rows[r], lmax, lmax_factor, off, values, w0, w, wfull, fh, fl, fe)
 
 
 

@@ -1,11 +1,12 @@
 """The on-disk cache of Gaunt tables: HDF5 files written atomically under a lock and validated on load.
 
-Schema (format version 1), one file ``gaunt_Lb{Lb}_La{La}.h5`` per table:
+Schema (format version 2), one file ``gaunt_Lb{Lb}_La{La}.h5`` per table:
 
 =============================  ==========================================================================
 ``/values``                    float64 dataset, the stored families in the layout of :mod:`shspec.gaunt.table`
 attr ``format``                ``"shspec-gaunt"``
-attr ``format_version``        int, 1
+attr ``format_version``        int, 2 (version 1 files hold the same layout, but a value could differ by an ulp
+                               between tables of different La, which made results depend on what was cached)
 attr ``lmax``                  int, basis band limit Lb
 attr ``lmax_factor``           int, factor band limit La
 attr ``convention``            :data:`CONVENTION`: real orthonormal harmonics as pyshtools (ortho, csphase=1)
@@ -36,6 +37,7 @@ import fcntl
 import hashlib
 import os
 import re
+import threading
 import time
 import warnings
 from collections import OrderedDict
@@ -48,7 +50,8 @@ import numpy as np
 
 from .._version import __version__
 from ..atomic import atomic_hdf5, temporary_files
-from ..errors import BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError
+from ..errors import (BandLimitError, CacheLocationError, CorruptTableError, OutdatedTableError, ShspecWarning,
+                      TableMismatchError)
 from ..outputs import ensure_directory
 from ..resources import check_need
 from ..sphere.harmonics import degree_order
@@ -60,7 +63,7 @@ __all__ = ["CONVENTION", "FORMAT_VERSION", "TableInfo", "TempFileInfo", "cache_d
            "save_table", "load_table", "get_table", "list_tables", "list_temporary_files", "remove_stale_files",
            "verify_table", "ensure_cache_dir"]
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 CONVENTION = "real-ortho-csphase1-pyshtools; flat i=l*l+l+m; G_ijk=int Y_i Y_j Y_k dOmega"
 _PROJECT_NAME = re.compile(r'^name\s*=\s*"shspec"\s*$', re.M)
 _NAME = re.compile(r"^gaunt_Lb(\d+)_La(\d+)\.h5$")
@@ -208,19 +211,22 @@ def _write(table: GauntTable, path: Path, build_seconds: float) -> Path:
 #: changes; the few most recent are kept (with their assembly plans, which cost as much as the read).
 _MEMORY: "OrderedDict[tuple, GauntTable]" = OrderedDict()
 _MEMORY_ENTRIES = 4
+_MEMORY_LOCK = threading.Lock()
+os.register_at_fork(after_in_child=_MEMORY_LOCK._at_fork_reinit)  # a thread of the parent may have held it
 
 
 def _read(path: Path, lmax: int | None = None, lmax_factor: int | None = None) -> GauntTable:
     """The validated table in ``path``, from memory when the file has not changed since it was read."""
     stat = path.stat()
     key = (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
-    table = _MEMORY.get(key)
-    if table is None:
-        table = _read_file(path)
-        _MEMORY[key] = table
-        while len(_MEMORY) > _MEMORY_ENTRIES:
-            _MEMORY.popitem(last=False)
-    _MEMORY.move_to_end(key)
+    with _MEMORY_LOCK:  # threads share the memory (and read a file once between them)
+        table = _MEMORY.get(key)
+        if table is None:
+            table = _read_file(path)
+            _MEMORY[key] = table
+            while len(_MEMORY) > _MEMORY_ENTRIES:
+                _MEMORY.popitem(last=False)
+        _MEMORY.move_to_end(key)
     if lmax is not None and (table.lmax, table.lmax_factor) != (lmax, lmax_factor):
         raise TableMismatchError(f"{path} holds the table ({table.lmax},{table.lmax_factor}), not "
                                  f"({lmax},{lmax_factor})")
@@ -240,6 +246,9 @@ def _read_file(path: Path) -> GauntTable:
         if attrs.get("format") != "shspec-gaunt":
             raise CorruptTableError(f"{path} is not an shspec Gaunt table (format attribute {attrs.get('format')!r})")
         version = attrs.get("format_version")
+        if isinstance(version, (int, np.integer)) and 0 < version < FORMAT_VERSION:
+            raise OutdatedTableError(f"{path} was written by an older shspec (format version {version}; this one "
+                                     f"writes {FORMAT_VERSION})")
         if version != FORMAT_VERSION:
             raise TableMismatchError(f"{path} has format version {version}; this shspec reads version "
                                      f"{FORMAT_VERSION}: rebuild it (precompute --force)")
@@ -252,20 +261,44 @@ def _read_file(path: Path) -> GauntTable:
         except (KeyError, TypeError, ValueError) as exc:
             raise CorruptTableError(f"{path} lacks a required attribute: {exc}") from exc
         expected = table_size(have_b, have_a)
-        if count != expected or "values" not in f or f["values"].shape != (expected,):
+        stored = _values_dataset(f)
+        if count != expected or not isinstance(stored, h5py.Dataset) or stored.shape != (expected,):
             raise CorruptTableError(f"{path} should hold {expected} values for ({have_b},{have_a}); "
-                                    f"it says {count} and stores {f['values'].shape if 'values' in f else 'none'}")
+                                    f"it says {count} and stores {_describe_values(stored)}")
         try:
-            values = f["values"][...]
+            values = stored[...]
         except OSError as exc:
             raise CorruptTableError(f"{path}: the values cannot be read (truncated file?): {exc}") from exc
     if values.dtype != np.float64:
         raise CorruptTableError(f"{path}: values have dtype {values.dtype}, expected float64")
     if _checksum(values) != checksum:
         raise CorruptTableError(f"{path} fails its checksum: the file is corrupt; rebuild it (precompute --force)")
+    finite = np.isfinite(values)
+    if not finite.all():
+        # a checksum only says the file is as written; a table written with NaN in it is as unusable
+        bad = np.flatnonzero(~finite)
+        raise CorruptTableError(f"{path} holds {bad.size} values that are NaN or inf (first at position {bad[0]}): "
+                                "rebuild it (precompute --force)")
     meta = {k: (v.item() if hasattr(v, "item") else v) for k, v in attrs.items()}
     values.setflags(write=False)  # shared by every caller that loads this file
     return GauntTable(have_b, have_a, values, path=path, metadata=meta)
+
+
+def _values_dataset(f: h5py.File):
+    """The object at ``/values`` (a dataset in a sound file), or None; a dangling link counts as missing."""
+    try:
+        return f.get("values")
+    except (KeyError, OSError):
+        return None
+
+
+def _describe_values(stored) -> str:
+    """What ``/values`` is, for a message: its shape, or the kind of object that stands where a dataset should."""
+    if stored is None:
+        return "none"
+    if isinstance(stored, h5py.Dataset):
+        return str(stored.shape)
+    return f"a {type(stored).__name__.lower()} instead of a dataset"
 
 
 @dataclass(frozen=True)
@@ -314,11 +347,14 @@ def list_tables(directory: str | os.PathLike | None = None, *, verify: bool = Fa
                 count = int(f.attrs.get("count", -1))
                 created = str(f.attrs.get("created", ""))
                 if f.attrs.get("format_version") != FORMAT_VERSION:
-                    problem = f"format version {f.attrs.get('format_version')}"
+                    problem = (f"format version {f.attrs.get('format_version')}, this shspec reads {FORMAT_VERSION}: "
+                               "rebuild it (precompute --force)")
                 elif (int(f.attrs.get("lmax", -1)), int(f.attrs.get("lmax_factor", -1))) != (lb, la):
                     problem = "band limits in the file do not match its name"
-                elif "values" not in f or f["values"].shape != (table_size(lb, la),):
-                    problem = f"holds {f['values'].shape if 'values' in f else 'no'} values, not ({table_size(lb, la)},)"
+                else:
+                    stored = _values_dataset(f)
+                    if not isinstance(stored, h5py.Dataset) or stored.shape != (table_size(lb, la),):
+                        problem = f"stores {_describe_values(stored)} as its values, not ({table_size(lb, la)},)"
         except (OSError, ValueError, BandLimitError) as exc:
             problem = f"unreadable: {exc}"
         if problem is None and verify:
@@ -407,7 +443,8 @@ def get_table(lmax: int, lmax_factor: int, *, cache_dir: str | os.PathLike | Non
     build : bool
         Build and save a missing table; when False a missing table raises :class:`BandLimitError`.
     rebuild_corrupt : bool
-        Replace a corrupt or outdated file by a fresh build, with a warning, instead of raising.
+        Replace a corrupt or mismatched file by a fresh build, with a warning, instead of raising.  A table of an
+        older format (:class:`~shspec.errors.OutdatedTableError`) is always rebuilt, with a warning, when ``build``.
     force : bool
         Build the table again even if a valid one is cached.  The cached file stays in place (and usable by
         others) until the new one is complete and renamed over it; an interrupted rebuild leaves it untouched.
@@ -431,9 +468,9 @@ def get_table(lmax: int, lmax_factor: int, *, cache_dir: str | os.PathLike | Non
                                  f"building is not allowed; run: python -m precompute --lmax {lmax} "
                                  f"--lmax-factor {lmax_factor}") from None
     except (CorruptTableError, TableMismatchError) as exc:
-        if not rebuild_corrupt:
+        if not (rebuild_corrupt or build and isinstance(exc, OutdatedTableError)):
             raise
-        warnings.warn(f"rebuilding the Gaunt table: {exc}", stacklevel=2)
+        warnings.warn(f"rebuilding the Gaunt table: {exc}", ShspecWarning, stacklevel=2)
     path = table_path(lmax, lmax_factor, directory)
     ensure_cache_dir(path.parent)
     need = table_need(lmax, lmax_factor)
@@ -445,8 +482,8 @@ def get_table(lmax: int, lmax_factor: int, *, cache_dir: str | os.PathLike | Non
         if path.exists() and not force:
             try:
                 return _read(path, lmax, lmax_factor)
-            except (CorruptTableError, TableMismatchError):
-                if not rebuild_corrupt:
+            except (CorruptTableError, TableMismatchError) as exc:
+                if not (rebuild_corrupt or isinstance(exc, OutdatedTableError)):
                     raise
         start = time.perf_counter()
         table = build_table(lmax, lmax_factor, progress=progress)
@@ -466,12 +503,12 @@ def verify_table(table: GauntTable, samples: int = 2000, seed: int = 0) -> float
         return 0.0
     rng = np.random.default_rng(seed)
     l, m = degree_order(table.lmax)
-    worst = 0.0
+    diffs = []
     for e in rng.integers(0, n, size=samples):
         t = int(rng.integers(0, plan.count[e]))
         l3 = int(plan.l3min[e]) + 2 * t
         i, j = int(plan.i[e]), int(plan.j[e])
         stored = plan.factor[e] * table.values[plan.offset[e] + t]
         fresh = real_gaunt(int(l[i]), int(m[i]), int(l[j]), int(m[j]), l3, int(plan.m3[e]))
-        worst = max(worst, abs(stored - fresh))
-    return worst
+        diffs.append(abs(stored - fresh))
+    return float(np.max(diffs, initial=0.0))  # NaN when a sampled value is NaN (max() would skip it)

@@ -23,6 +23,7 @@ import numpy as np
 from ..checks import real_array
 from ..errors import BandLimitError, InvalidArgumentError
 from ..resources import Need
+from ..threads import serialized
 from ..sphere.harmonics import check_degree, ncoeffs
 from .real_gaunt import order_factor
 
@@ -203,6 +204,7 @@ class _Plan:
 # kernels
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _assemble_upper(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, coef, out):
     for r in nb.prange(rows.size):
@@ -218,6 +220,7 @@ def _assemble_upper(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, co
             out[ei[e], ej[e]] += efac[e] * acc
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _contract(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, bmat, nfactor, nchunks):
     # one partial sum per chunk of rows (chunks interleave the rows, which come sorted by work, to balance them)
@@ -240,6 +243,7 @@ def _contract(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, bmat, nf
     return part.sum(axis=0)
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _quad_forms(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, vecs, nfactor, nchunks):
     # out[k, q] = v_qᵀ G_k v_q for each column q of vecs; rows of vecs are basis indices
@@ -267,6 +271,7 @@ def _quad_forms(rows, starts, ei, ej, em3, el3, ecnt, eoff, efac, values, vecs, 
     return part.sum(axis=0)
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _mirror_upper(out):
     # copy the strict upper triangle into the lower one; each thread writes whole rows
@@ -276,6 +281,7 @@ def _mirror_upper(out):
             out[i, j] = out[j, i]
 
 
+@serialized
 @nb.njit(cache=True, parallel=True)
 def _restrict(rows, lmax, lmax_factor, off_small, big_factor, off_big, big_values, out):
     for r in nb.prange(rows.size):

@@ -267,41 +267,45 @@ def _first_symbol(j2, j3, m2, m3, jmin, fh, fl, fe):
 
 @nb.njit(cache=True, nogil=True)
 def family_upto_into(j2, j3, m2, m3, jtop, out, fh, fl, fe):
-    """The family from jmin up to ``jtop`` (< jmax) by the forward recursion from the exact first symbol.
+    """The family from jmin up to ``jtop`` by the forward recursion from the exact first symbol, as far as it is stable.
 
-    Returns (jmin, n, ok): ``out[0:n]`` holds w(jmin … jtop) when ok; ok is False when the range reaches the upper
-    forbidden region (or jmin = 0, where the recursion has no two-term start), and the caller must use
-    :func:`family_into`.  ``fh, fl, fe`` is :func:`factorial_table` of at least j2 + j3 + jtop + 1.
+    Returns (jmin, n, ok): ``out[0:n]`` holds w(jmin … jmin + n − 1).  ok is True when that is the whole range up to
+    ``jtop``; otherwise the recursion reached the upper forbidden region (or jtop = jmax, or jmin = 0, where the
+    recursion has no two-term start) and the caller must take w(jmin + n …) from :func:`family_into`.  Each value
+    depends only on the family and its j, never on ``jtop``: the sweep is the same prefix whatever ``jtop`` is, its
+    rescalings only touch the two values the recursion carries on, and where it stops does not depend on ``jtop``
+    either, so a table built for a smaller La holds the very same bits as one built for a larger La and restricted.
+    ``fh, fl, fe`` is :func:`factorial_table` of at least j2 + j3 + jtop + 1.
     """
     jmin, jmax = family_range(j2, j3, m2, m3)
-    if jmin > jmax or jmin == 0 or jtop >= jmax or jtop < jmin:
+    if jmin > jmax or jmin == 0 or jtop < jmin:
         return jmin, 0, False
     m1 = -(m2 + m3)
-    n = jtop - jmin + 1
-    out[0] = 1.0
+    ok = jtop < jmax
+    n = min(jtop, jmax - 1) - jmin + 1  # w(jmax) is never taken from the forward sweep
+    if n == 0:
+        return jmin, 0, False
+    mant, e = _first_symbol(j2, j3, m2, m3, jmin, fh, fl, fe)
+    # w(jmin + t) = r_t · mant · 2**(e + _SCALE_EXP · k_t), r the unnormalized sweep and k_t the rescalings before t
+    out[0] = math.ldexp(mant, e)
     if n == 1:
-        mant, e = _first_symbol(j2, j3, m2, m3, jmin, fh, fl, fe)
-        out[0] = math.ldexp(mant, e)
-        return jmin, 1, True
+        return jmin, 1, ok
     a_next = _coef_a(jmin + 1, j2, j3, m1)
-    out[1] = -_coef_b(jmin, j2, j3, m1, m2, m3) / (jmin * a_next)
-    scale = 0
+    prev, cur = 1.0, -_coef_b(jmin, j2, j3, m1, m2, m3) / (jmin * a_next)
+    out[1] = math.ldexp(cur * mant, e)
     a_j = a_next
     for p in range(1, n - 1):
         j = jmin + p
         a_next = _coef_a(j + 1, j2, j3, m1)
         b = _coef_b(j, j2, j3, m1, m2, m3)
-        out[p + 1] = -(b * out[p] + (j + 1) * a_j * out[p - 1]) / (j * a_next)
+        new = -(b * cur + (j + 1) * a_j * prev) / (j * a_next)
         # real characteristic roots with decaying values: the upper forbidden region, unstable forwards
-        if b * b >= 4.0 * j * (j + 1) * a_j * a_next and abs(out[p + 1]) < abs(out[p]):
-            return jmin, 0, False
-        if abs(out[p + 1]) > _HUGE:
-            for t in range(p + 2):
-                out[t] = math.ldexp(out[t], -_SCALE_EXP)
-            scale += 1
+        if b * b >= 4.0 * j * (j + 1) * a_j * a_next and abs(new) < abs(cur):
+            return jmin, p + 1, False
+        prev, cur = cur, new
+        if abs(cur) > _HUGE:
+            prev, cur = math.ldexp(prev, -_SCALE_EXP), math.ldexp(cur, -_SCALE_EXP)
+            e += _SCALE_EXP
+        out[p + 1] = math.ldexp(cur * mant, e)
         a_j = a_next
-    mant, e = _first_symbol(j2, j3, m2, m3, jmin, fh, fl, fe)
-    e += scale * _SCALE_EXP
-    for t in range(n):
-        out[t] = math.ldexp(out[t] * mant, e)
-    return jmin, n, True
+    return jmin, n, ok

@@ -2,8 +2,11 @@
 
 A checkpoint holds the finished starts and the running one (its stage, the parameters at the stage's start, the
 optimizer's state after its last completed iteration and the history), plus a fingerprint of the problem (options
-that change the computation, target spectrum, model).  Resuming checks the fingerprint and continues the running
-start from that state: the optimizers are deterministic, so the result is the one of an uninterrupted run.  Files
+that change the computation, model, number of target eigenvalues) and the target spectrum itself.  Resuming checks
+the fingerprint, compares the target spectrum to round-off (:data:`TARGET_RTOL`; a computed target such as the
+built-in blob may move by a few ulps with the machine or library versions, and that is not another fit) and continues
+the running start from that state, on the checkpoint's own target: the optimizers are deterministic, so the result
+is the one of an uninterrupted run.  Files
 are written atomically (:mod:`shspec.atomic`: a temporary file, fsynced, renamed), so a crash while writing never
 leaves a truncated checkpoint; and every file carries a BLAKE2b checksum of all its datasets and attributes, checked on reading, so a
 damaged file is refused by name instead of silently changing a resumed fit.
@@ -28,10 +31,14 @@ from .problem import StartProgress
 from .results import StartResult
 
 __all__ = ["fingerprint", "save_checkpoint", "load_checkpoint", "describe_checkpoint", "claim_checkpoint",
-           "save_result", "load_result_summary", "CHECKPOINT_FORMAT"]
+           "save_result", "load_result_summary", "TARGET_RTOL", "CHECKPOINT_FORMAT"]
 
-#: Format version of checkpoints and result files.
-CHECKPOINT_FORMAT = 1
+#: Format version of checkpoints and result files (2: the target spectrum is stored, not hashed).
+CHECKPOINT_FORMAT = 2
+
+#: Largest difference between a checkpoint's target spectrum and the resuming fit's, relative to the largest
+#: eigenvalue, that still counts as the same target (round-off of how the target was computed).
+TARGET_RTOL = 1e-12
 
 #: Options that do not change the computation, left out of the fingerprint.
 _IGNORED = ("checkpoint_every", "checkpoint_path", "progress", "starts")
@@ -45,10 +52,12 @@ def options_dict(options: FitOptions) -> dict:
 
 
 def fingerprint(options: FitOptions, target_eigenvalues, model_description: str) -> str:
-    """SHA-256 of what determines a fit's arithmetic: options (bar bookkeeping), target spectrum and model."""
+    """SHA-256 of what determines a fit's arithmetic: options (bar bookkeeping), model and the number of target
+    eigenvalues.  The eigenvalues themselves are compared by :func:`load_checkpoint` to round-off instead of being
+    hashed: a hash would refuse a target that moved by an ulp."""
     opts = {k: v for k, v in options_dict(options).items() if k not in _IGNORED}
     h = hashlib.sha256(json.dumps(opts, sort_keys=True).encode())
-    h.update(np.ascontiguousarray(target_eigenvalues, dtype=float).tobytes())
+    h.update(f"numeig {np.size(target_eigenvalues)};".encode())
     h.update(model_description.encode())
     return h.hexdigest()
 
@@ -124,11 +133,13 @@ def _open_checked(path, what: str) -> h5py.File:
     return f
 
 
-def save_checkpoint(path, fp: str, finished: list, progress) -> None:
-    """Write a checkpoint: the fingerprint, the finished starts and the running start's progress (or None)."""
+def save_checkpoint(path, fp: str, finished: list, progress, target_eigenvalues) -> None:
+    """Write a checkpoint: the fingerprint, the target spectrum, the finished starts and the running start's progress
+    (or None)."""
     def write(f):
         f.attrs["format"] = CHECKPOINT_FORMAT
         f.attrs["fingerprint"] = fp
+        f.create_dataset("target", data=np.asarray(target_eigenvalues, dtype=float))
         g = f.create_group("finished")
         for r in finished:
             _write_start(g.create_group(str(r.index)), r)
@@ -146,13 +157,16 @@ def save_checkpoint(path, fp: str, finished: list, progress) -> None:
     _atomic(Path(path), write)
 
 
-def load_checkpoint(path, fp: str):
-    """Read a checkpoint written by :func:`save_checkpoint`: (finished starts, running progress or None).
+def load_checkpoint(path, fp: str, target_eigenvalues):
+    """Read a checkpoint written by :func:`save_checkpoint`: (finished starts, running progress or None, the target
+    eigenvalues the checkpointed fit ran on — equal to ``target_eigenvalues`` to round-off, and what a resumed fit
+    goes on with, so that it ends as the uninterrupted one would have).
 
     Raises
     ------
     CheckpointError
-        If the file is unreadable, of another format, or of another problem (fingerprint mismatch).
+        If the file is unreadable, of another format, or of another problem (fingerprint mismatch, or a target
+        spectrum that differs by more than :data:`TARGET_RTOL` relative to its largest eigenvalue).
     """
     f = _open_checked(path, "checkpoint")
     try:
@@ -160,7 +174,10 @@ def load_checkpoint(path, fp: str):
             if f.attrs.get("format") != CHECKPOINT_FORMAT:
                 raise CheckpointError(f"{path} is not a shspec fit checkpoint of format {CHECKPOINT_FORMAT}")
             if f.attrs.get("fingerprint") != fp:
-                raise CheckpointError(f"{path} is the checkpoint of another fit (options, target or model differ)")
+                raise CheckpointError(f"{path} is the checkpoint of another fit (options, model or number of target "
+                                      "eigenvalues differ)")
+            stored = f["target"][()]
+            _check_target(path, stored, np.asarray(target_eigenvalues, dtype=float))
             finished = sorted((_read_start(g) for g in f["finished"].values()), key=lambda r: r.index)
             progress = None
             if "current" in f:
@@ -176,7 +193,16 @@ def load_checkpoint(path, fp: str):
         raise
     except Exception as exc:
         raise CheckpointError(f"cannot read the checkpoint {path}: {exc}") from exc
-    return finished, progress
+    return finished, progress, stored
+
+
+def _check_target(path, stored: np.ndarray, target: np.ndarray) -> None:
+    """Refuse a checkpoint whose target spectrum is not the resuming fit's, up to round-off."""
+    scale = max(float(np.max(np.abs(target))), float(np.finfo(float).tiny))
+    worst = float(np.max(np.abs(stored - target))) / scale
+    if not worst <= TARGET_RTOL:  # also refuses NaN
+        raise CheckpointError(f"{path} is the checkpoint of a fit to another target spectrum (largest difference "
+                              f"{worst:.2g} of the largest eigenvalue, more than the round-off {TARGET_RTOL:g})")
 
 
 def describe_checkpoint(path) -> str:

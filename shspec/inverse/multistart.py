@@ -7,6 +7,7 @@ BLAS threads); each writes checkpoints if asked, and Ctrl-C ends the fit cleanly
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import sys
 from concurrent.futures import Executor, as_completed
@@ -99,7 +100,8 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
         :func:`shspec.parallel.make_executor`): each start is independent and seeded by its index, so the results are
         those of a serial run.  Finished starts are checkpointed as they arrive; a start still running when the
         fit stops is run again from its beginning on resume.  Run at most one start per process at a time
-        (processes, or Dask workers with one thread each): pyshtools' grid routines are not thread-safe.
+        (processes, or Dask workers with one thread each): threads are safe (:mod:`shspec.threads`), but they take
+        turns in pyshtools' grid routines and numba's parallel kernels.
 
     Returns
     -------
@@ -129,10 +131,13 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     finished: list[StartResult] = []
     current: StartProgress | None = None
     if resume and options.checkpoint_path is not None and Path(options.checkpoint_path).exists():
-        finished, current = load_checkpoint(options.checkpoint_path, fp)
+        finished, current, stored = load_checkpoint(options.checkpoint_path, fp, target.eigenvalues)
+        if not np.array_equal(stored, target.eigenvalues):  # round-off apart: go on with the checkpoint's own
+            target = dataclasses.replace(target, eigenvalues=stored)  # target, as the uninterrupted fit did
+            problem = FitProblem(model, target, options, init=init)
 
     def checkpoint(progress):
-        save_checkpoint(options.checkpoint_path, fp, finished, progress)
+        save_checkpoint(options.checkpoint_path, fp, finished, progress, target.eigenvalues)
 
     interrupted = False
     done = {r.index for r in finished}
@@ -158,7 +163,7 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
             except KeyboardInterrupt:
                 interrupted = True
                 if options.checkpoint_path:
-                    save_checkpoint(options.checkpoint_path, fp, finished, current)
+                    save_checkpoint(options.checkpoint_path, fp, finished, current, target.eigenvalues)
                 running = current is not None and current.index not in {r.index for r in finished}
                 if running and current.params is not None:
                     finished.append(current.result("interrupted", current.seconds, options.success_tol))

@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from ..checks import check_float, check_int, check_options
-from ..errors import InvalidArgumentError
+from ..errors import InvalidArgumentError, MeshError
 from .cotan import cotan_stiffness, vertex_areas
 from .mobius import center_mesh
 from .progress import announce, bar, shown
@@ -32,6 +32,10 @@ from .triangle_mesh import TriangleMesh
 from .validate import validate_mesh
 
 __all__ = ["CMCFOptions", "CMCFResult", "cmcf", "roundness", "quasiconformal_distortion", "flipped_faces"]
+
+#: Range of a mesh's size (largest extent along an axis) that cMCF accepts: its areas and conformal factors scale as
+#: the size squared and its cotan weights multiply two of them, which over- or underflows double precision beyond.
+SIZE_RANGE = (1e-50, 1e50)
 
 
 @dataclass(frozen=True)
@@ -208,13 +212,19 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
     Raises
     ------
     MeshError
-        If ``options.validate`` and the mesh is not a closed manifold genus-0 mesh.
+        If ``options.validate`` and the mesh is not a closed manifold genus-0 mesh, or if its size is outside
+        :data:`SIZE_RANGE`.
     ConvergenceError
         If Möbius centering fails (the flow itself reports failure through ``success``).
     """
     opt = check_options(options, CMCFOptions)
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
+    if np.all(np.isfinite(mesh.vertices)):  # NaN and inf are validate_mesh's to name
+        size = float(np.max(np.ptp(mesh.vertices, axis=0)))
+        if not SIZE_RANGE[0] <= size <= SIZE_RANGE[1]:
+            raise MeshError(f"the mesh is {size:.3g} across, outside [{SIZE_RANGE[0]:g}, {SIZE_RANGE[1]:g}]: its "
+                            "areas and conformal factors (~ size^2) would leave double precision; rescale it")
     if opt.validate:
         validate_mesh(mesh)
     start = time.perf_counter()

@@ -53,6 +53,13 @@ __all__ = ["TopologyOptions", "TopologyEstimate", "estimate_topology", "check_ge
 #: Fewest eigenvalues :func:`estimate_topology` accepts: below this no window is both truncation-safe and wide.
 MIN_EIGENVALUES = 20
 
+#: Range of the largest eigenvalue the heat-trace fit handles: its windows have t ~ 1/λ_max and its design matrix
+#: holds powers of t up to the fourth or so, which over- or underflow double precision far outside it.
+_EIGENVALUE_RANGE = (1e-60, 1e60)
+#: How far a known area may be from Weyl's law λ_k ≈ 4πk/A before it is refused as another surface's (a real
+#: surface's spectrum is within a factor ~3 of the law at k >= MIN_EIGENVALUES).
+_AREA_MISMATCH = 1e6
+
 
 def _positive_tuple(values, name: str, *, minimum: float = 0.0) -> tuple:
     try:
@@ -281,10 +288,21 @@ def estimate_topology(eigenvalues, area: float | None = None, *, numeig: int | N
     lam = as_eigenvalues(eigenvalues, minimum=MIN_EIGENVALUES)
     if numeig is not None:
         lam = lam[:check_int(numeig, "numeig", minimum=MIN_EIGENVALUES, maximum=lam.size)]
+    top = float(lam[-1])
+    if not _EIGENVALUE_RANGE[0] <= top <= _EIGENVALUE_RANGE[1]:
+        raise InvalidArgumentError(
+            f"the largest eigenvalue {top:.3g} is outside [{_EIGENVALUE_RANGE[0]:g}, {_EIGENVALUE_RANGE[1]:g}], where "
+            "the heat-trace fit over- or underflows; rescale the spectrum (a surface scaled by s has eigenvalues "
+            "lambda/s^2)")
     if area is not None:
         area = float(area)
         if not (np.isfinite(area) and area > 0):
             raise InvalidArgumentError(f"area must be finite and positive, got {area}")
+        weyl = 4 * np.pi * (lam.size - 1) / top
+        if not 1 / _AREA_MISMATCH <= area / weyl <= _AREA_MISMATCH:
+            raise InvalidArgumentError(
+                f"the area {area:.3g} is {area / weyl:.2g} times the area Weyl's law gives for this spectrum "
+                f"(about {weyl:.3g}): it is not this surface's area (or the spectrum is in other units)")
     noise = float(relative_noise)
     if not (np.isfinite(noise) and 0 <= noise < 1):
         raise InvalidArgumentError(f"relative_noise must be in [0, 1), got {relative_noise}")

@@ -14,12 +14,17 @@ import scipy.optimize
 
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..plotstyle import linear_colorbar_ticks, style_hammer
+from ..threads import PYSHTOOLS_LOCK
 from .grid import evaluate_on_grid, expand_grid, glq_grid
 from .harmonics import (as_coefficients, check_degree, lmax_of_size, vector_to_cilm, vector_to_shcoeffs)
 
-__all__ = ["ConformalFactor", "Minimum", "as_factor", "derivative_bounds", "grid_lower_bound"]
+__all__ = ["ConformalFactor", "MAX_COEFFICIENT", "Minimum", "as_factor", "derivative_bounds", "grid_lower_bound"]
 
 _SQRT_4PI = np.sqrt(4.0 * np.pi)
+
+#: Largest magnitude of a coefficient of ρ: squares, norms and products with eigenvalues (~1/ρ) then stay far from
+#: the overflow and underflow of double precision (an area of 1e100 is beyond any use of the library).
+MAX_COEFFICIENT = 1e100
 
 
 @dataclass(frozen=True)
@@ -128,6 +133,12 @@ class ConformalFactor:
 
     def __init__(self, coefficients, lmax: int | None = None, *, name: str = "rho"):
         coef = as_coefficients(coefficients, lmax)
+        big = float(np.max(np.abs(coef), initial=0.0))
+        if big > MAX_COEFFICIENT:
+            raise InvalidArgumentError(
+                f"a coefficient of rho of magnitude {big:.3g} exceeds {MAX_COEFFICIENT:g}: its squares and the mass "
+                "matrix would overflow double precision; rescale rho (the spectrum of c*rho is that of rho "
+                "divided by c)")
         self.coefficients = coef
         self.coefficients.setflags(write=False)
         self.name = str(name)
@@ -140,6 +151,9 @@ class ConformalFactor:
         area = float(area)
         if not np.isfinite(area) or area <= 0:
             raise InvalidArgumentError(f"the area must be positive and finite, got {area}")
+        if area > MAX_COEFFICIENT * _SQRT_4PI:
+            raise InvalidArgumentError(f"the area {area:g} exceeds {MAX_COEFFICIENT * _SQRT_4PI:.3g}, beyond what "
+                                       "double precision computes a spectrum for; rescale it")
         coef = np.zeros((check_degree(lmax, "lmax") + 1) ** 2)
         coef[0] = area / _SQRT_4PI
         return cls(coef, name=f"sphere(area={area:g})")
@@ -237,7 +251,8 @@ class ConformalFactor:
 
     def rotated(self, alpha: float, beta: float, gamma: float) -> "ConformalFactor":
         """ρ∘R⁻¹ for the rotation with Euler angles (z-y-z, degrees) of pyshtools ``SHCoeffs.rotate(body=True)``."""
-        rot = self.to_shcoeffs().rotate(alpha, beta, gamma, degrees=True, body=True)
+        with PYSHTOOLS_LOCK:
+            rot = self.to_shcoeffs().rotate(alpha, beta, gamma, degrees=True, body=True)
         return ConformalFactor(rot, self.lmax, name=f"rotated {self.name}")
 
     def evaluate(self, grid_lmax: int | None = None) -> tuple[np.ndarray, "object"]:
@@ -340,7 +355,8 @@ class ConformalFactor:
 
         def rho(uv):
             lat, lo = point(uv)
-            return float(pyshtools.expand.MakeGridPoint(cilm, lat, lo, norm=4, csphase=1))
+            with PYSHTOOLS_LOCK:
+                return float(pyshtools.expand.MakeGridPoint(cilm, lat, lo, norm=4, csphase=1))
 
         res = scipy.optimize.minimize(rho, np.zeros(2), method="Nelder-Mead",
                                       options={"xatol": 1e-9, "fatol": 1e-14, "initial_simplex":

@@ -13,6 +13,7 @@ from functools import lru_cache
 import numpy as np
 import pyshtools
 
+from ..threads import PYSHTOOLS_LOCK
 from .harmonics import check_degree, lmax_of_size, vector_to_cilm, cilm_to_vector
 
 __all__ = ["GLQGrid", "glq_grid", "evaluate_on_grid", "expand_grid"]
@@ -56,8 +57,9 @@ class GLQGrid:
 def glq_grid(lmax: int) -> GLQGrid:
     """The GLQ grid of degree ``lmax`` (cached)."""
     lmax = check_degree(lmax, "grid degree")
-    zero, w = pyshtools.expand.SHGLQ(lmax)
-    lat, lon = pyshtools.expand.GLQGridCoord(lmax)
+    with PYSHTOOLS_LOCK:
+        zero, w = pyshtools.expand.SHGLQ(lmax)
+        lat, lon = pyshtools.expand.GLQGridCoord(lmax)
     colat = np.radians(90.0 - lat)
     lonr = np.radians(lon)
     weights = np.outer(w, np.full(lon.size, 2.0 * np.pi / lon.size))
@@ -74,12 +76,15 @@ def evaluate_on_grid(coef: np.ndarray, grid: GLQGrid) -> np.ndarray:
         padded = np.zeros((2, grid.lmax + 1, grid.lmax + 1))
         padded[:, : lc + 1, : lc + 1] = cilm
         cilm = padded
-    return pyshtools.expand.MakeGridGLQ(cilm, grid.zero, lmax=grid.lmax, norm=4, csphase=1, lmax_calc=min(lc, grid.lmax))
+    with PYSHTOOLS_LOCK:
+        return pyshtools.expand.MakeGridGLQ(cilm, grid.zero, lmax=grid.lmax, norm=4, csphase=1,
+                                            lmax_calc=min(lc, grid.lmax))
 
 
 def expand_grid(values: np.ndarray, grid: GLQGrid, lmax: int) -> np.ndarray:
     """Flat coefficients up to degree ``lmax`` (<= grid degree) of grid values (L+1, 2L+1), by quadrature."""
     lmax = check_degree(lmax, "lmax", maximum=grid.lmax)
-    cilm = pyshtools.expand.SHExpandGLQ(np.asarray(values, dtype=float), grid.w, grid.zero, norm=4, csphase=1,
-                                        lmax_calc=lmax)
+    with PYSHTOOLS_LOCK:
+        cilm = pyshtools.expand.SHExpandGLQ(np.asarray(values, dtype=float), grid.w, grid.zero, norm=4, csphase=1,
+                                            lmax_calc=lmax)
     return cilm_to_vector(cilm, lmax)

@@ -20,6 +20,7 @@ import numpy as np
 import pyshtools
 
 from ..errors import ConvergenceError, InvalidArgumentError, NotPositiveError
+from ..threads import PYSHTOOLS_LOCK
 from .evaluate import sample_harmonic
 from .harmonics import as_coefficients, check_degree, cilm_to_vector, lmax_of_size
 
@@ -128,8 +129,9 @@ def center_harmonic(coeffs, lmax: int | None = None, *, grid_lmax: int | None = 
     grid_lmax = max(4 * lmax, 32) if grid_lmax is None else check_degree(grid_lmax, "grid_lmax")
     if grid_lmax < lmax:
         raise InvalidArgumentError(f"grid_lmax = {grid_lmax} must be >= lmax = {lmax}")
-    zero, w = pyshtools.expand.SHGLQ(grid_lmax)
-    lat, lon = pyshtools.expand.GLQGridCoord(grid_lmax)
+    with PYSHTOOLS_LOCK:
+        zero, w = pyshtools.expand.SHGLQ(grid_lmax)
+        lat, lon = pyshtools.expand.GLQGridCoord(grid_lmax)
     lat_g, lon_g = np.meshgrid(np.radians(lat), np.radians(lon), indexing="ij")
     x = np.stack([np.cos(lat_g) * np.cos(lon_g), np.cos(lat_g) * np.sin(lon_g), np.sin(lat_g)], -1).reshape(-1, 3)
     quad = (w[:, None] * np.full(lon.size, 2 * np.pi / lon.size)[None, :]).ravel()
@@ -155,7 +157,8 @@ def center_harmonic(coeffs, lmax: int | None = None, *, grid_lmax: int | None = 
         raise ConvergenceError(f"harmonic Möbius centering: |centre| = {np.linalg.norm(center):.3g} > {tol:g} "
                                f"after {max_iter} Newton steps")
     grid = rho.reshape(lat.size, lon.size)
-    full = pyshtools.expand.SHExpandGLQ(grid, w, zero, norm=4, csphase=1, lmax_calc=grid_lmax)
+    with PYSHTOOLS_LOCK:
+        full = pyshtools.expand.SHExpandGLQ(grid, w, zero, norm=4, csphase=1, lmax_calc=grid_lmax)
     vec_full = cilm_to_vector(full)
     out = vec_full[: (lmax + 1) ** 2].copy()
     truncation = float(np.linalg.norm(vec_full[out.size:]) / np.linalg.norm(vec_full))

@@ -14,6 +14,7 @@ import numpy as np
 import pyshtools
 
 from ..errors import InvalidArgumentError
+from ..threads import PYSHTOOLS_LOCK
 from .harmonics import as_coefficients, degree_order, lmax_of_size
 
 __all__ = ["power_spectrum", "rotate_coefficients", "rotator", "mirror_coefficients"]
@@ -44,14 +45,16 @@ def rotator(lmax: int):
     """A fast rotation of validated flat vectors of band limit lmax (the alignment calls it thousands of times)."""
     l, m = degree_order(lmax)
     sheet, col = (m < 0).astype(int), np.abs(m)
-    dj = pyshtools.rotate.djpi2(max(lmax, 1))
+    with PYSHTOOLS_LOCK:
+        dj = pyshtools.rotate.djpi2(max(lmax, 1))
 
     def rotate(a: np.ndarray, angles: np.ndarray) -> np.ndarray:
         if lmax == 0:
             return a.copy()
         cilm = np.zeros((2, lmax + 1, lmax + 1))
         cilm[sheet, l, col] = a
-        return pyshtools.rotate.SHRotateRealCoef(cilm, angles, dj)[sheet, l, col]
+        with PYSHTOOLS_LOCK:
+            return pyshtools.rotate.SHRotateRealCoef(cilm, angles, dj)[sheet, l, col]
 
     return rotate
 

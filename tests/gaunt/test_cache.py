@@ -8,8 +8,10 @@ import h5py
 import numpy as np
 import pytest
 
-from shspec.gaunt.cache import get_table, list_tables, load_table, save_table, table_path, verify_table
-from shspec.errors import BandLimitError, CacheLocationError, CorruptTableError, TableMismatchError
+from shspec.gaunt.cache import (FORMAT_VERSION, get_table, list_tables, load_table, save_table, table_path,
+                                verify_table)
+from shspec.errors import (BandLimitError, CacheLocationError, CorruptTableError, OutdatedTableError, ShspecWarning,
+                           TableMismatchError)
 from shspec.gaunt.build import build_table
 
 
@@ -20,7 +22,7 @@ def test_round_trip_and_metadata(tmp_path):
     assert table.path == path and path.exists()
     again = load_table(10, 6, tmp_path)
     np.testing.assert_array_equal(again.values, table.values)
-    assert again.metadata["format_version"] == 1 and again.metadata["checksum"].startswith("blake2b:")
+    assert again.metadata["format_version"] == 2 and again.metadata["checksum"].startswith("blake2b:")
     assert [t.path for t in list_tables(tmp_path)] == [path]
     assert not list(tmp_path.glob("*.tmp"))
     assert verify_table(again, 300) < 1e-15
@@ -89,6 +91,21 @@ def test_wrong_version_and_limits(tmp_path):
     os.replace(table_path(8, 4, tmp_path), table_path(9, 4, tmp_path))
     with pytest.raises(TableMismatchError, match="holds the table \\(8,4\\)"):
         load_table(9, 4, tmp_path)
+
+
+def test_a_table_of_an_older_format_is_rebuilt_with_a_warning(tmp_path):
+    get_table(10, 6, cache_dir=tmp_path)
+    path = table_path(10, 6, tmp_path)
+    with h5py.File(path, "r+") as f:
+        f.attrs["format_version"] = 1
+    with pytest.raises(OutdatedTableError, match="older shspec \\(format version 1"):
+        load_table(10, 6, tmp_path)
+    with pytest.raises(OutdatedTableError):
+        get_table(10, 6, cache_dir=tmp_path, build=False)  # never rebuilt where building is not allowed
+    with pytest.warns(ShspecWarning, match="rebuilding the Gaunt table"):
+        table = get_table(10, 6, cache_dir=tmp_path)
+    np.testing.assert_array_equal(table.values, build_table(10, 6).values)
+    assert load_table(10, 6, tmp_path).metadata["format_version"] == FORMAT_VERSION
 
 
 def test_unusable_cache_locations(tmp_path):

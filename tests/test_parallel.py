@@ -1,0 +1,42 @@
+"""An unreachable Dask scheduler is one line naming its address, at once (issue 34 item 9)."""
+
+from __future__ import annotations
+
+import socket
+import time
+
+import pytest
+
+from shspec.cli import main
+from shspec.errors import SchedulerError, ShspecError
+from shspec.mesh import icosphere, save_mesh
+from shspec.parallel import make_executor
+
+
+@pytest.fixture
+def closed_port() -> str:
+    with socket.socket() as s:  # a port that was just free: nothing listens there now
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    return f"tcp://127.0.0.1:{port}"
+
+
+def test_a_closed_port_fails_at_once_with_its_address(closed_port):
+    pytest.importorskip("distributed")
+    start = time.perf_counter()
+    with pytest.raises(SchedulerError, match=closed_port.replace(".", r"\.")) as info:
+        make_executor(scheduler=closed_port, connect_timeout=5)
+    assert time.perf_counter() - start < 3  # distributed alone retried for its 30 s timeout
+    assert isinstance(info.value, ShspecError)
+    with pytest.raises(SchedulerError, match="not a Dask scheduler address"):
+        make_executor(scheduler="tcp://[bad")
+
+
+def test_the_cli_prints_one_line(tmp_path, capsys, closed_port):
+    pytest.importorskip("distributed")
+    mesh = tmp_path / "ico.obj"
+    save_mesh(icosphere(1), mesh)
+    code = main(["mesh-spectrum", str(mesh), str(mesh), "--out", str(tmp_path / "out"), "--scheduler", closed_port])
+    err = capsys.readouterr().err
+    assert code == 1 and "Traceback" not in err
+    assert err.strip().count("\n") == 0 and closed_port in err
