@@ -73,6 +73,16 @@ class SerialExecutor(Executor):
         self._shutdown = True
 
 
+def _distributed():
+    """The ``distributed`` package, an optional dependency (``pip install "shspec[dask]"``)."""
+    try:
+        import distributed
+    except ImportError:
+        raise SchedulerError("running on a Dask cluster needs Dask's distributed package, which is not installed: "
+                             'pip install "shspec[dask]"') from None
+    return distributed
+
+
 def _probe(address: str, timeout: float) -> None:
     """Fail at once when nothing listens at a TCP scheduler address: distributed retries a refused connection
     until its timeout, then raises with a traceback of its own."""
@@ -105,15 +115,15 @@ class DaskExecutor(Executor):
     Raises
     ------
     SchedulerError
-        Nothing answers at ``address`` within ``timeout`` seconds, or the address cannot be parsed.
+        Nothing answers at ``address`` within ``timeout`` seconds, the address cannot be parsed, or Dask's
+        distributed package is not installed (the extra ``shspec[dask]``).
     """
 
     def __init__(self, address: str, *, timeout: float = CONNECT_TIMEOUT):
-        from distributed import Client
-
+        distributed = _distributed()
         _probe(address, timeout)
         try:
-            self.client = Client(address, timeout=timeout)
+            self.client = distributed.Client(address, timeout=timeout)
         except OSError as exc:  # distributed's TimeoutError is one
             raise SchedulerError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
         except Exception as exc:  # noqa: BLE001 - whatever answered there does not speak Dask (seen: MemoryError)

@@ -40,3 +40,15 @@ def test_the_cli_prints_one_line(tmp_path, capsys, closed_port):
     err = capsys.readouterr().err
     assert code == 1 and "Traceback" not in err
     assert err.strip().count("\n") == 0 and closed_port in err
+
+
+def test_a_scheduler_without_dask_installed_says_which_extra_to_install(monkeypatch, capsys, tmp_path):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "distributed", None)  # as if shspec[dask] were not installed
+    with pytest.raises(SchedulerError, match=r'pip install "shspec\[dask\]"'):
+        make_executor(scheduler="tcp://127.0.0.1:8786")
+    assert main(["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "1",
+                 "--scheduler", "tcp://127.0.0.1:8786", "--out", str(tmp_path / "fit")]) == 1
+    err = capsys.readouterr().err
+    assert "shspec[dask]" in err and "Traceback" not in err

@@ -159,6 +159,6 @@ def test_the_other_readers_give_a_result_or_a_shspec_error(tmp_path_factory, con
     path = table_path(2, 2, folder) if reader == "table" else folder / f"f{suffix}"
     path.write_bytes(content)
     calls = {"rho": lambda: parse_rho(str(path), 2), "init": lambda: read_initial(path, HarmonicModel(4, 2)),
-             "checkpoint": lambda: load_checkpoint(path, "fp"), "result": lambda: load_result_summary(path),
+             "checkpoint": lambda: load_checkpoint(path, "fp", np.arange(3.0)), "result": lambda: load_result_summary(path),
              "table": lambda: load_table(2, 2, folder)}
     _obeys_the_rule(calls[reader])

@@ -15,6 +15,7 @@ from contextlib import contextmanager
 
 import h5py
 import numpy as np
+from tqdm import tqdm
 
 from ..inverse import align
 from ..mesh.bridge import fit_harmonic, mesh_band_limit
@@ -44,18 +45,24 @@ def single_threaded():
 
 
 class Progress:
-    """``[i/n] message (elapsed s)`` lines on stderr when enabled."""
+    """An experiment's progress on stderr when enabled: a tqdm bar over its ``total`` steps on a terminal (with the
+    elapsed and the estimated remaining time), and a ``[i/n] message (elapsed s)`` line per finished step."""
 
     def __init__(self, enabled: bool, total: int, name: str):
         self.enabled, self.total, self.name = enabled, total, name
         self.done = 0
         self.start = time.perf_counter()
+        self.bar = tqdm(total=total, desc=name, unit="step", file=sys.stderr, leave=False,
+                        disable=not (enabled and sys.stderr.isatty()))
 
     def step(self, message: str) -> None:
         self.done += 1
+        self.bar.update(1)
         if self.enabled:
-            print(f"  {self.name} [{self.done}/{self.total}] {message} ({time.perf_counter() - self.start:.0f} s)",
-                  file=sys.stderr, flush=True)
+            self.bar.write(f"  {self.name} [{self.done}/{self.total}] {message} "
+                           f"({time.perf_counter() - self.start:.0f} s)", file=sys.stderr)
+        if self.done >= self.total:
+            self.bar.close()
 
 
 def vertex_factor_errors(areas, fitted, truth) -> dict:

@@ -2,7 +2,7 @@
 
 Cold: LAPACK through :func:`scipy.linalg.eigh` on the upper triangle.  Which driver is faster depends on the share of
 the spectrum wanted: the MRRR subset driver ('evr') for few eigenpairs, the full divide and conquer ('evd') from
-about a fifth of them (one thread, OpenBLAS; measured in ``benchmarks/bench_iteration.py``: N = 960 crosses over at
+about a fifth of them (one thread, OpenBLAS; measured, :doc:`/benchmarks`: N = 960 crosses over at
 k ≈ 0.23·N, N = 440 at 0.15·N, N = 1680 at 0.2·N; at (Lb, k) = (24, 300) 'evd' takes 0.45× the time of 'evr', at
 (60, 500) 1.5×).
 

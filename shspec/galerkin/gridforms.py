@@ -12,7 +12,7 @@ sin |m|φ for m < 0), so each of the four steps is a small batch of matrix produ
 4. per order m', the latitude projection with the Gauss weights                  (nl_m' × nlat) @ (nlat × q).
 
 At (Lb, La, q) = (30, 15, 256) that is about 0.2 GFlop, where the table kernel walks every Gaunt coefficient once per
-vector (``benchmarks/bench_iteration.py`` measures both; :meth:`HarmonicModel.jacobian` picks by size).
+vector (both measured: :doc:`/benchmarks`; :meth:`HarmonicModel.jacobian` picks by size).
 """
 
 from __future__ import annotations

@@ -244,8 +244,7 @@ class HarmonicModel(SpectralModel):
         """∂λ_i/∂a_k = −λ_i v_iᵀ G_k v_i, as a (k, nparams) array.
 
         The quadratic forms come from the exact GLQ quadrature (:mod:`shspec.galerkin.gridforms`), equal to the
-        Gaunt-table contraction to rounding and 6-20× faster than it at the sizes of a fit
-        (``benchmarks/bench_iteration.py``)."""
+        Gaunt-table contraction to rounding and 6-20× faster than it at the sizes of a fit (:doc:`/benchmarks`)."""
         if not isinstance(spec, Spectrum):
             raise InvalidArgumentError(f"jacobian needs the Spectrum of a solve (model.spectrum(...)), got "
                                        f"{type(spec).__name__}")

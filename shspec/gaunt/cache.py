@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import hashlib
 import os
 import re
@@ -45,6 +44,7 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
+import filelock
 import h5py
 import numpy as np
 
@@ -125,45 +125,36 @@ def _lock_path(path: Path) -> Path:
 
 @contextlib.contextmanager
 def _locked(path: Path):
-    """Exclusive advisory lock on ``path.lock`` so that concurrent builders of one table wait for each other.
+    """Exclusive lock on ``path.lock`` (filelock: flock on POSIX, msvcrt on Windows) so that concurrent builders of
+    one table wait for each other.
 
     Every writer of ``path`` holds this lock, so once we have it any temporary file of ``path`` belongs to a writer
     that died (SIGKILL, power cut) and is removed here.
     """
     lock = _lock_path(path)
     try:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        held = filelock.FileLock(lock, mode=0o644, thread_local=False).acquire()
     except OSError as exc:
         raise CacheLocationError(f"cannot create the lock file {lock}: {exc.strerror}") from exc
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
+    with held:
         for tmp in temporary_files(path):
             with contextlib.suppress(OSError):
                 tmp.unlink()
         yield
-    finally:
-        fcntl.flock(fd, fcntl.LOCK_UN)
-        os.close(fd)
 
 
 def _writer_active(path: Path) -> bool:
     """True when some process holds the lock of ``path`` (is building or writing it) right now."""
     lock = _lock_path(path)
-    try:
-        fd = os.open(lock, os.O_RDONLY)
-    except OSError:
+    if not lock.exists():
         return False
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
+        with filelock.FileLock(lock, thread_local=False).acquire(timeout=0):
+            return False
+    except filelock.Timeout:
         return True
     except OSError:
         return False
-    else:
-        fcntl.flock(fd, fcntl.LOCK_UN)
-        return False
-    finally:
-        os.close(fd)
 
 
 def _checksum(values: np.ndarray) -> str:

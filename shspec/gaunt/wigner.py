@@ -33,7 +33,7 @@ Two implementations of the same sweeps:
   returned as exact 0.  About 10× the cost of the double path.
 
 Measured accuracy per degree band up to l = 1000 against WIGXJPF (exact to final rounding), and the cost per family
-of both paths: docs/wigner_accuracy.md, produced by benchmarks/wigner_accuracy.py.  Only integer arguments are
+of both paths: :doc:`/wigner_accuracy`.  Only integer arguments are
 supported (the spherical-harmonic case).
 """
 

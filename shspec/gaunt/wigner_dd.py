@@ -90,8 +90,8 @@ def family_into_dd(j2, j3, m2, m3, hi, lo):
     ``hi`` alone is the correctly rounded double of ``hi + lo`` and is what :func:`wigner3j_family` returns.
     Structural zeros (B ≡ 0, e.g. all m = 0 with odd j1 + j2 + j3) come out as exact zeros.
 
-    Cost (one core, measured by ``benchmarks/wigner_accuracy.py``): 6–10× the double :func:`family_into`,
-    ~2 µs per family at l ≤ 10, ~7 µs at l ≤ 60, ~0.12 ms at l ≤ 1000 (see docs/wigner_accuracy.md).
+    Cost (one core, measured: :doc:`/wigner_accuracy`): 6–10× the double :func:`family_into`,
+    ~2 µs per family at l ≤ 10, ~7 µs at l ≤ 60, ~0.12 ms at l ≤ 1000.
 
     Parameters
     ----------

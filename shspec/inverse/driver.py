@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 import time
 
 import numpy as np
@@ -70,22 +69,20 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
             progress.state = optimizer.state()
             progress.history.append((s, optimizer.ev.energy, optimizer.ev.relative_residual))
             record()
-            if opt.progress and sys.stderr.isatty():
-                print(f"\r  start {progress.index} stage {s} it {optimizer.iteration:4d}  E = {optimizer.ev.energy:.3e}"
-                      f"  max rel. residual = {optimizer.ev.relative_residual:.3e}   ", end="", file=sys.stderr,
-                      flush=True)
+            if progress.display is not None:
+                progress.display.iteration(progress.index, s, optimizer.iteration, optimizer.ev.relative_residual)
             if checkpoint is not None and opt.checkpoint_every and (len(progress.history) - 1) % opt.checkpoint_every == 0:
                 checkpoint(progress)
         progress.status = optimizer.status or "max_iter"
         progress.state = None
         if opt.orient_blocks and _raises_level(problem, s) and progress.relative_residual > opt.success_tol:
             orient_new_block(problem, progress, s)
-        if opt.progress:
-            basis = "" if problem.bases[s] is None else f", basis degree {problem.bases[s]}"
-            print(f"\r  start {progress.index} stage {s} ({_level_text(obj.model, problem.level(s))}{obj.target.size} "
-                  f"eigenvalues{basis}): "
-                  f"{progress.status} after {optimizer.iteration} iterations, max rel. residual "
-                  f"{optimizer.ev.relative_residual:.3e}", file=sys.stderr, flush=True)
+        basis = "" if problem.bases[s] is None else f", basis degree {problem.bases[s]}"
+        progress.say(opt, f"  start {progress.index} stage {s} ({_level_text(obj.model, problem.level(s))}"
+                          f"{obj.target.size} eigenvalues{basis}): {progress.status} after {optimizer.iteration} "
+                          f"iterations, max rel. residual {optimizer.ev.relative_residual:.3e}")
+        if progress.display is not None:
+            progress.display.stage_done()
         if (s < last and problem.stages[s].hops and opt.basin_hops
                 and progress.relative_residual > opt.success_tol):
             # not checkpointed apart: a resume inside these hops runs stage s again, which repeats them exactly

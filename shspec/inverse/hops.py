@@ -7,7 +7,6 @@ deterministic, so that a resumed fit repeats the hops exactly.
 
 from __future__ import annotations
 
-import sys
 from dataclasses import replace
 
 import numpy as np
@@ -21,8 +20,8 @@ __all__ = ["hop_once", "orient_new_block", "basin_hop", "grid_moves"]
 
 #: A hop's screening refit goes on past ``hop_iter`` while its energy fell by this share over the last
 #: _FALLING_SPAN iterations: in failed degree-10 states the moves that fall back into the state's own minimum slow
-#: down just above its energy, while the moves that leave it were still falling steeply at 15 iterations
-#: (benchmarks/bench_hop_screening.py) and, continued in a probe, crossed it at 18-20 (FitOptions.hop_extend).
+#: down just above its energy, while the moves that leave it were still falling steeply at 15 iterations and,
+#: continued, crossed it at 18-20 (FitOptions.hop_extend; measured: the benchmarks page of the docs).
 _FALLING = 0.1
 
 
@@ -91,10 +90,9 @@ def orient_new_block(problem: FitProblem, progress: StartProgress, s: int) -> No
     accepted, status = hop_once(problem, progress, s, moves, progress.status)
     if accepted:
         progress.status = status
-    if problem.options.progress:
-        print(f"  start {progress.index} stage {s}: {len(moves)} orientations of the new block, "
-              + (f"one accepted, max rel. residual {progress.relative_residual:.3e}" if accepted
-                 else "none lowers the energy"), file=sys.stderr, flush=True)
+    progress.say(problem.options, f"  start {progress.index} stage {s}: {len(moves)} orientations of the new block, "
+                 + (f"one accepted, max rel. residual {progress.relative_residual:.3e}" if accepted
+                    else "none lowers the energy"))
 
 
 def basin_hop(problem: FitProblem, progress: StartProgress, status: str, s: int) -> str:
@@ -118,10 +116,9 @@ def basin_hop(problem: FitProblem, progress: StartProgress, status: str, s: int)
             if grid:
                 accepted, status = hop_once(problem, progress, s, grid, status)
                 tried += f", then {min(len(grid), opt.hop_tries)} of {len(grid)} grid moves"
-        if opt.progress:
-            print(f"  start {progress.index} {where}basin hop {hop + 1}: "
-                  + (f"a move was accepted, {status}, max rel. residual {progress.relative_residual:.3e}" if accepted
-                     else f"none of {tried} lowers the energy"), file=sys.stderr, flush=True)
+        progress.say(opt, f"  start {progress.index} {where}basin hop {hop + 1}: "
+                     + (f"a move was accepted, {status}, max rel. residual {progress.relative_residual:.3e}"
+                        if accepted else f"none of {tried} lowers the energy"))
         if not accepted or progress.relative_residual <= opt.success_tol:
             break
     return status

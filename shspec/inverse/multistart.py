@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import sys
 from concurrent.futures import Executor, as_completed
 from pathlib import Path
 
@@ -22,6 +21,7 @@ from .checkpoint import fingerprint, load_checkpoint, save_checkpoint
 from .driver import run_start
 from .options import FitOptions
 from .problem import FitProblem, StartProgress
+from .progress import FitDisplay
 from .results import FitResult, StartResult
 from ..targets import Target
 
@@ -59,7 +59,8 @@ def _run_fresh_start(problem: FitProblem, index: int) -> StartResult:
     return run_start(problem, StartProgress(index, 0, problem.initial(rng, index), None))
 
 
-def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finished: list, checkpoint) -> bool:
+def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finished: list, checkpoint,
+                  display: FitDisplay) -> bool:
     """Run the pending starts on ``executor``; finished starts are appended (and checkpointed) as they complete.
     Returns True if Ctrl-C stopped it (the running starts are cancelled where the executor can)."""
     futures = {executor.submit(_run_fresh_start, problem, i): i for i in pending}
@@ -68,10 +69,7 @@ def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finish
             finished.append(future.result())
             if checkpoint is not None:
                 checkpoint(None)
-            if problem.options.progress:
-                r = finished[-1]
-                print(f"  start {r.index} done: {r.status}, max rel. residual {r.relative_residual:.3e} "
-                      f"({len(finished)}/{problem.options.starts})", file=sys.stderr, flush=True)
+            display.start_done(finished[-1])
     except KeyboardInterrupt:
         for future in futures:
             future.cancel()
@@ -135,18 +133,36 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
         if not np.array_equal(stored, target.eigenvalues):  # round-off apart: go on with the checkpoint's own
             target = dataclasses.replace(target, eigenvalues=stored)  # target, as the uninterrupted fit did
             problem = FitProblem(model, target, options, init=init)
+    done = {r.index for r in finished}
+    display = FitDisplay(options.starts, len(problem.stages), options.progress, done=len(done))
+    try:
+        interrupted = _run_starts(problem, executor, finished, current, done, fp, display)
+    finally:
+        display.close()
+    if not finished:
+        raise KeyboardInterrupt
+    finished.sort(key=lambda r: r.index)
+    solutions = distinct_solutions(finished, model, options.distinct_tol)
+    return FitResult(starts=finished, solutions=solutions, target=problem.target, options=options, model=model,
+                     seconds=float(sum(r.seconds for r in finished)), interrupted=interrupted)
+
+
+def _run_starts(problem: FitProblem, executor, finished: list, current, done: set, fp: str,
+                display: FitDisplay) -> bool:
+    """Run the starts not in ``done`` (on ``executor``, or here one after the other, ``current`` first when a
+    checkpoint left one running), appending them to ``finished``; returns whether an interrupt stopped them."""
+    options, target = problem.options, problem.target
 
     def checkpoint(progress):
         save_checkpoint(options.checkpoint_path, fp, finished, progress, target.eigenvalues)
 
     interrupted = False
-    done = {r.index for r in finished}
     if executor is not None:
         pending = [i for i in range(options.starts) if i not in done]
         interrupted = _run_parallel(problem, pending, executor, finished,
-                                    checkpoint if options.checkpoint_path else None)
-        if interrupted and options.progress:
-            print("\ninterrupted: the finished starts are kept", file=sys.stderr)
+                                    checkpoint if options.checkpoint_path else None, display)
+        if interrupted:
+            display.message("interrupted: the finished starts are kept")
     else:
         for i in range(options.starts):
             if i in done:
@@ -156,7 +172,9 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
                 if current is None or current.index != i:
                     current = StartProgress(i, 0, problem.initial(np.random.default_rng([options.seed, i]), i),
                                             None)
+                current.display = display
                 finished.append(run_start(problem, current, checkpoint if options.checkpoint_path else None))
+                display.start_done(finished[-1])
                 current = None
                 if options.checkpoint_path and options.checkpoint_every:
                     checkpoint(None)
@@ -167,12 +185,6 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
                 running = current is not None and current.index not in {r.index for r in finished}
                 if running and current.params is not None:
                     finished.append(current.result("interrupted", current.seconds, options.success_tol))
-                if options.progress:
-                    print("\ninterrupted: the best state so far is kept", file=sys.stderr)
+                display.message("interrupted: the best state so far is kept")
                 break
-    if not finished:
-        raise KeyboardInterrupt
-    finished.sort(key=lambda r: r.index)
-    solutions = distinct_solutions(finished, model, options.distinct_tol)
-    return FitResult(starts=finished, solutions=solutions, target=target, options=options, model=model,
-                     seconds=float(sum(r.seconds for r in finished)), interrupted=interrupted)
+    return interrupted

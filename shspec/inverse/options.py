@@ -25,45 +25,31 @@ AREA_MODES = ("auto", "fixed", "fit")
 
 @dataclass(frozen=True)
 class FitOptions:
-    """Options of :func:`~shspec.inverse.fit`.
+    """Options of :func:`~shspec.inverse.fit`.  The defaults are the command line's; the user guide's inverse page
+    (:doc:`/guide/inverse`) gives what was measured for each search option.
 
     Attributes
     ----------
     optimizer : {"lm", "lbfgs", "bfgs", "gd"} or None
-        None (the default, also the command line's): the model's :attr:`~shspec.spectral_model.SpectralModel.default_optimizer`.
-        Harmonic models use "lm" (Levenberg–Marquardt): it reached the same minimum as L-BFGS and BFGS in 4–5× less
-        time and converges quadratically near a zero-residual solution; gradient descent had not converged after
-        1000 iterations.  Mesh models use "lbfgs": at 600 vertices and 599 eigenvalues it reached LM's point in 11 s
-        against 16 s, and at 1200 vertices LM diverged (benchmarks/results/bench_inverse.json).
+        None (default): the model's :attr:`~shspec.spectral_model.SpectralModel.default_optimizer`, Levenberg–
+        Marquardt for harmonic models, L-BFGS for mesh models.
     weights : {"relative", "absolute"}
-        Eigenvalue weights, see :data:`WEIGHTINGS`.
+        Eigenvalue weights, see :data:`WEIGHTINGS` (default "relative").
     reg : float
-        Bi-Laplacian regularization weight R ≥ 0 (E += R‖Δρ‖²).
+        Regularization weight R ≥ 0, dimensionless (harmonic: E += R‖Δρ‖²; meshes: the model's penalty).
     area : {"auto", "fixed", "fit"}
         Treatment of a_00, see :data:`AREA_MODES` (harmonic fits).
     schedule : tuple of Stage or None
-        Stages run in order from each start; empty means one stage at full degree with every eigenvalue; None (the
-        default, also the command line's) the model's default, :func:`~shspec.inverse.default_schedule`: the degree
-        ramp for harmonic models (with 4 basin hops 7 of 8 blob starts succeeded, against 2 of 8 with
-        :func:`~shspec.inverse.numeig_ramp` and none with one stage; benchmarks/results/bench_inverse.json), the
-        numeig ramp for meshes.
+        Stages run in order from each start; empty: one stage at full degree with every eigenvalue; None
+        (default): the model's :func:`~shspec.inverse.default_schedule` (the degree ramp for harmonic models, the
+        numeig ramp for meshes).
     stage_basis_tol : float or None
-        Every stage but the last runs on the coarsest discretization of the model on which its eigenvalues agree
-        with the model's own to this relative tolerance (:meth:`~shspec.spectral_model.SpectralModel.stage_basis`; harmonic
-        models: a smaller basis degree, chosen once per fit at a reference ρ); the last stage and the basin hops use
-        the model itself; a stage with :attr:`Stage.hops` gets the tolerance ``success_tol`` (if smaller), so that
-        its hops can tell success.  None: every stage on the model's own.  The stages' optima are not the truth's
-        truncations anyway (at degree 10 they end at residuals of 1e-4 … 1e-3).  For the blob at La = 15 with
-        K = 704 (Lb 42) the bases run from degree 7 (16 eigenvalues) to 40 (576), and the stages up to 400
-        eigenvalues were done 2.6 min after launch (choosing the bases, 18 s, included) against 16.5 min on Lb
-        (one start each, one core each, side by side; benchmarks/results/bench_stage_bases.json).  On small
-        bases the gain is small: the blob at Lb 20, La 6, K 120, 8 of 8 starts at a median 19 s against 23 s;
-        degree 10 at Lb 24, K 300, 4 of 8 at 244 s against 6 of 8 at 241 s, measured again 5 of 8 at 262 s
-        against 5 of 8 at 270 s (the stages themselves 29 s against 46 s; the paths differ, and which starts
-        succeed is fragile; benchmarks/results/bench_global_search.json, bench_hop_anatomy.json of commit
-        ecb52d3, before the hops screened with plain LM).
+        Every stage but the last runs on the coarsest discretization on which its eigenvalues agree with the
+        model's own to this relative tolerance (:meth:`~shspec.spectral_model.SpectralModel.stage_basis`, chosen
+        once per fit at a reference ρ); a stage with :attr:`Stage.hops` uses ``success_tol`` if smaller.  None:
+        every stage on the model's own.  Default 1e-5.
     starts : int
-        Number of random symmetry-broken starts.
+        Number of random symmetry-broken starts (default 4).
     seed : int
         Seed of every random choice: start i uses ``numpy.random.default_rng([seed, i])``.
     start_amplitude : float
@@ -79,58 +65,30 @@ class FitOptions:
     lbfgs_memory : int
         Number of correction pairs kept by L-BFGS.
     lm_damping : float
-        Initial Levenberg–Marquardt damping μ (relative to diag(JᵀJ)); large values make the first steps short
-        gradient-like steps.
+        Initial Levenberg–Marquardt damping μ (relative to diag(JᵀJ)).
     lm_acceleration : bool
-        Levenberg–Marquardt adds the geodesic acceleration of each step (Transtrum & Sethna): one extra solve per
-        trial, of the eigenvalues alone, and the fit follows curved valleys where the linear model alone crawls.
-        On the blob at La = 15 from 1e-3 off the truth (benchmarks/results/bench_convergence.json) it took the
-        relative residual to 3e-15 in 28 iterations at K = 600 (Lb 40), where plain LM was at 3e-9 after 60.
+        Levenberg–Marquardt adds the geodesic acceleration of each step (Transtrum & Sethna): one extra solve of
+        the eigenvalues alone per trial, to follow curved valleys.
     basin_hops : int
-        After the last stage, and after every stage with :attr:`Stage.hops` (in the default degree ramp of a fit
-        above degree 6, the stage of degree 6), while the relative residual is above success_tol, up to this many
-        basin hops (0: none).  A hop first tries the model's cheap moves (power-preserving moves of one degree
-        block: half-turns about the axes, signs of odd blocks), and when none of them lowers the energy, the grid
-        moves of ``hop_grid``.  Each move tried gets ``hop_iter`` iterations, and the first that lowers the energy
-        is refitted to convergence.  The hops stop at success, after ``basin_hops`` accepted moves, or when no move
-        lowers the energy, so a larger budget costs only the starts that are still improving.  Not checkpointed (a
-        run resumed after the last stage repeats it).  On the blob with :func:`~shspec.inverse.degree_ramp`, 4 hops
-        (hop_iter 15) raised the successes from 2 to 7 of 8 starts.  At degree 10 (Lb 24, K = 300, the capped
-        degree ramp) the hops made every success: 0 of 12 starts without them, 2 of 12 with 4 and 5 of 8 with 12
-        (cheap moves only; the successes took 1 to 10 accepted hops), 6 of 8 with 12 and ``hop_grid``, at a median
-        241 s per start (benchmarks/results/bench_global_search.json).  On the blob (Lb 20, La 6, K = 120) the
-        defaults made 8 of 8 succeed (7 of 8 with 4 cheap hops).
+        After the last stage, and after every stage with :attr:`Stage.hops`, while the relative residual is above
+        ``success_tol``: up to this many accepted escape moves (0: none).  A hop tries the model's cheap moves
+        (:meth:`~shspec.spectral_model.SpectralModel.escape_moves`), then the grid moves of ``hop_grid``; each is
+        screened by a short refit, and the first below the current energy is refitted to convergence.  The hops
+        stop at success, after ``basin_hops`` accepted moves, or when no move lowers the energy.
     hop_iter : int
-        Iterations given to each move of a basin hop.  These short refits run plain LM (without
-        ``lm_acceleration``), which reaches the same energy in them: on 12 moves from a degree-10 local minimum
-        (Lb 24, K = 300) the energies after 15 iterations agreed to 2-3 % (most to all printed digits) at 0.7× the
-        time; the accepted move's refit to convergence uses ``lm_acceleration``.
+        Iterations of each move's screening refit (plain LM, without ``lm_acceleration``).
     hop_extend : int
         A screening refit still above the current energy at ``hop_iter`` iterations goes on, up to this many
-        iterations in all, while its energy keeps falling fast (by 10 % over the last 3 iterations); set it to
-        ``hop_iter`` for none.  In failed degree-10 states (benchmarks/bench_hop_screening.py) the moves that fall
-        back into the state's own minimum reach its energy within a few iterations and stop there, while the moves
-        that leave it were still falling at 15 iterations (a probe: 3 of 12 continued crossed it at 18 to 20).  At
-        degree 10 (Lb 24, K = 300, 8 starts on an AMD EPYC; bench_hop_anatomy.json) 45 made 7 succeed and 3 of
-        the first four, 15 made 6 and 2, at a median 246 s per start either way.
+        iterations in all, while its energy falls by 10 % over its last 3 iterations (``hop_iter``: never).
     hop_grid : bool
-        When no cheap move lowers the energy, try every degree block turned by the 23 rotations of the octahedral
-        group (and, for odd blocks, by the 24 improper ones): :meth:`~shspec.spectral_model.SpectralModel.escape_moves`
-        with ``newest=True`` at each level, 303 moves at degree 10.  In the degree-10 setting above it rescued one
-        of the 3 starts whose cheap moves were exhausted with ``hop_tries`` 48, two of them when every grid move
-        could be refitted (a probe; the failing one then spent 8 minutes in one hop).
+        When no cheap move lowers the energy, also try every degree block turned through the octahedral group
+        (and reflected, for odd blocks).
     hop_tries : int
-        At most this many moves of a hop are refitted, those of lowest energy before any refit (one eigensolve
-        each); it bounds the cost of a hop that finds nothing.  A larger value only adds successes: the moves are
-        tried in the same order and the first that lowers the energy is taken, so a start follows the same path
-        until a smaller cap would have given up.  At degree 10 (Lb 24, K = 300, 16 starts of seed 0;
-        benchmarks/results/bench_hop_anatomy.json of commit c851d30) 144 made 12 of 16 starts succeed at a median
-        135 s per start (the failures 230–342 s), 48 made 10 of 16 at 106 s (the failures 105–154 s).
+        At most this many moves of a hop are refitted, those of lowest energy before any refit; it bounds the
+        cost of a hop that finds nothing.
     orient_blocks : bool
-        After each stage that first fits a new level (a new degree block), try the model's orientations of that
-        block relative to the ones fitted before (:meth:`~shspec.spectral_model.SpectralModel.escape_moves` with
-        ``newest=True``: an octahedral grid of rotations, and reflections of odd blocks), each with ``hop_iter``
-        iterations, and go on from the best that lowers the energy.  Default off (see the benchmark).
+        After each stage that first fits a new degree block, try its orientations relative to the blocks fitted
+        before (default off).
     distinct_tol : float
         Two converged starts are the same local solution when their energies agree to this relative tolerance
         and their per-degree powers (rotation invariant) agree to it relative to the total power.
@@ -141,7 +99,9 @@ class FitOptions:
     checkpoint_path : str or None
         HDF5 file of the checkpoint.
     progress : bool
-        Print one line per stage and a progress line per iteration on stderr.
+        Show the fit's progress on stderr (:class:`~shspec.inverse.progress.FitDisplay`): a bar on a terminal with
+        the stage, the starts done, the successes, the elapsed and the estimated remaining time, and one line per
+        finished stage, hop and start.
     """
 
     optimizer: str | None = None

@@ -155,6 +155,16 @@ class StartProgress:
     relative_residual: float = np.inf
     eigenvalues: np.ndarray | None = None
     status: str = "max_iter"
+    #: the fit's :class:`~shspec.inverse.progress.FitDisplay` while it runs here (None in an executor's worker,
+    #: whose lines go to its own stderr); not part of a checkpoint
+    display: object = field(default=None, repr=False, compare=False)
+
+    def say(self, options, text: str) -> None:
+        """Report a line of this start: through the fit's display, else (a worker) on stderr if ``progress``."""
+        if self.display is not None:
+            self.display.message(text)
+        elif options.progress:
+            print(text, file=sys.stderr, flush=True)
 
     def result(self, status: str, seconds: float, success_tol: float) -> StartResult:
         """The start's outcome so far (its best state: the optimizers only accept descent)."""

@@ -83,19 +83,16 @@ def parse_schedule(text: str) -> tuple[Stage, ...]:
 #: Iterations of every stage but the last in the default degree ramp (see :func:`degree_ramp`).
 DEFAULT_STAGE_MAX_ITER = 40
 
-#: The degree whose stage of the default degree ramp hops (see :func:`degree_ramp`), in fits of higher degree.
-#: Degree 6 is where the hops were measured to succeed on their own (the blob at La 6: 8 of 8 starts), and its
-#: stage (64 eigenvalues) is small: with it the blob at La 15 (K 704) and a random ρ of degree 10 (K 300) were
-#: recovered from 4 of 4 starts each, where without it a blob start ended 3.6 % off and the degree-10 fit recovered
-#: 1 to 3 of the same four (benchmarks/results/bench_inverse.json, ``goal_blob`` and ``goal_degree10``).
+#: The degree whose stage of the default degree ramp hops (see :func:`degree_ramp`), in fits of higher degree:
+#: there the hops succeed on their own and a round of moves is cheap (the user guide's inverse page has the numbers).
 DEFAULT_HOP_DEGREE = 6
 
 def numeig_ramp(numeig: int, lmax_factor: int | None = None, first: int = 16) -> tuple[Stage, ...]:
     """A schedule that matches more and more eigenvalues: k = 16, 36, 64, ... ((2j)² up to ``numeig``), then all.
 
     Raising the number of matched eigenvalues in steps that end at whole sphere clusters ((l+1)² eigenvalues)
-    was measured to escape the local minima of a direct fit far more often (benchmarks/bench_inverse.py): the low
-    eigenvalues fix the coarse shape first.
+    escapes the local minima of a direct fit more often (measured: :doc:`/guide/inverse`): the low eigenvalues fix
+    the coarse shape first.
 
     Parameters
     ----------
@@ -135,19 +132,14 @@ def degree_ramp(numeig: int, lmax_factor: int, stage_max_iter: int | None = None
     stage_max_iter : int, optional
         Iterations of every stage but the last (None: :attr:`FitOptions.max_iter`).  Their optima are not the truth
         cut to their degree or eigenvalue count (the higher degrees move the low eigenvalues too), so converging
-        them buys little.  At degree 10 (Lb 24, K = 300) with 4 basin hops, capping them at 40 iterations gave 2
-        of 12 successes at a median 116 s per start (benchmarks/results/bench_global_search.json), where the
-        uncapped ramp had given 0 of 4 at a median 163 s (``goal_degree10`` in bench_inverse.json of commit
-        c0e95a5); on the blob (La 6, K 120) 7 of 8 either way.
+        them buys little.
     hop_degree : int, optional
         The stage that raises the degree to this one runs to convergence (``FitOptions.max_iter``) and then the
         basin hops (:attr:`Stage.hops`): the global search on the low degrees while their stage is small, before
         the higher degrees are added.  None: hops after the last stage only.  No stage hops if that stage would
-        match ``numeig`` eigenvalues or more.  With ``hop_degree=6``, the default of fits above degree 6
-        (:data:`DEFAULT_HOP_DEGREE`), the blob at La 15 with K = 704 found the truth at its degree-6 stage in every
-        start and went on to ρ within 2e-9; without it a start ended at an error of 3.6 %.  The hops cost time
-        where the stage cannot reach a zero residual: with R = 1e-6 in the study's setting (K = 256) a start took
-        570-895 s instead of 126 s, for the same result.
+        match ``numeig`` eigenvalues or more.  Fits above degree 6 hop at degree 6 by default
+        (:data:`DEFAULT_HOP_DEGREE`).  The hops cost time where the stage cannot reach a zero residual (a
+        regularized fit, a ρ of higher degree).
     """
     numeig, lmax_factor = check_int(numeig, "numeig", minimum=2), check_int(lmax_factor, "lmax_factor", minimum=2)
     stage_max_iter = check_int(stage_max_iter, "stage_max_iter", allow_none=True, minimum=1)
@@ -168,12 +160,8 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
     """The schedule a fit runs when its options name none: :func:`degree_ramp` over the model's levels (harmonic
     models: the factor's degree), :func:`numeig_ramp` for models without levels (meshes).
 
-    The degree ramp with 4 basin hops made 7 of 8 blob starts succeed, the numeig ramp 2 of 8 and one stage none
-    (benchmarks/results/bench_inverse.json).  Its stages but the last are capped at
-    :data:`DEFAULT_STAGE_MAX_ITER` iterations: the same 7 of 8 on the blob in 155 s against 171 s for the 8 starts,
-    and at degree 10 (K = 300) 2 of 12 with 4 hops; with the default hops (12, and the grid moves) 8 of 8 on the
-    blob and 6 of 8 at degree 10 with every stage on the model's basis, 8 of 8 and 4 of 8 with the stages' own
-    bases (:attr:`FitOptions.stage_basis_tol`; benchmarks/results/bench_global_search.json).
+    The stages of the degree ramp but the last are capped at :data:`DEFAULT_STAGE_MAX_ITER` iterations; how often
+    each schedule succeeds, measured, is in the user guide's inverse page (:doc:`/guide/inverse`).
     """
     levels = model.levels()
     if not levels:

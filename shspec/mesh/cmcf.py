@@ -223,8 +223,10 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
     if np.all(np.isfinite(mesh.vertices)):  # NaN and inf are validate_mesh's to name
         size = float(np.max(np.ptp(mesh.vertices, axis=0)))
         if not SIZE_RANGE[0] <= size <= SIZE_RANGE[1]:
-            raise MeshError(f"the mesh is {size:.3g} across, outside [{SIZE_RANGE[0]:g}, {SIZE_RANGE[1]:g}]: its "
-                            "areas and conformal factors (~ size^2) would leave double precision; rescale it")
+            which = "too large" if size > SIZE_RANGE[1] else "too small"
+            raise MeshError(f"the mesh is {size:.3g} across, {which} for the flow (within [{SIZE_RANGE[0]:g}, "
+                            f"{SIZE_RANGE[1]:g}]: its areas and conformal factors, ~ size^2, would leave double "
+                            "precision); rescale it")
     if opt.validate:
         validate_mesh(mesh)
     start = time.perf_counter()

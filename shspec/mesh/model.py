@@ -108,7 +108,7 @@ class MeshModel(SpectralModel):
     """
 
     #: L-BFGS: at 600 vertices and every eigenvalue it reached LM's point in 11 s against 16 s; at 1200 vertices
-    #: LM's dense normal equations diverged (benchmarks/results/bench_inverse.json, mesh_all)
+    #: LM's dense normal equations diverged (measured: the benchmarks page of the docs)
     default_optimizer = "lbfgs"
 
     def __init__(self, mesh: TriangleMesh, options: EigenOptions | None = None, *, transform: str = "identity",

@@ -89,7 +89,7 @@ class TopologyOptions:
         Candidate Q: discretization terms t^{−2} … t^{−Q} fitted (0: none; else ≥ 2).  The default leaves out 0:
         every computed spectrum (cotan, Galerkin) has them, and a model without them, fitted with the area free,
         hides them in the area and can be stable and wrong at once (it read a genus-3 chain of rings as genus 4
-        with 500 eigenvalues in ``benchmarks/bench_topology.py``).  Exact closed-form spectra lose little.
+        with 500 eigenvalues; :doc:`/benchmarks`).  Exact closed-form spectra lose little.
     samples : int
         Times per window (log-spaced).
     confidence : float
@@ -156,7 +156,7 @@ class TopologyEstimate:
     separation : float
         Distance from the estimate to the nearest other integer g' ≥ 0, in units of σ_g.
     confident : bool
-        See the module notes; a confident genus was never wrong in ``benchmarks/bench_topology.py``.
+        See the module notes; a confident genus was never wrong in the measured cases (:doc:`/benchmarks`).
     statement : str
         E.g. "genus 1; the nearest other integer is 4.2σ away".
     area, area_error : float
