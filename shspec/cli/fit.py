@@ -7,6 +7,7 @@ fit; the discretizations it can fit are listed in ``MODELS``.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -35,6 +36,7 @@ from ..mesh.refine import eigenvalue_errors, trusted_numeig
 from ..pipeline.adaptive import AdaptiveOptions, adaptive_fit
 from ..parallel import make_executor
 from ..spectral.topology import check_genus_zero
+from ..sphere.factor import ConformalFactor
 from ..sphere.harmonics import as_coefficients
 from ..sphere.random import random_centred_coefficients
 
@@ -51,16 +53,9 @@ def _mesh(args, target: Target) -> MeshModel:
                      reg_kind=args.reg_kind)
 
 
-def read_initial(path: Path, model) -> np.ndarray:
-    """A starting point for ``model`` from a file: a previous fit's ``result.h5`` (its solution) or
-    ``summary.json`` (its cilm), a ``.npy`` array, or text with one value per line.  Harmonic coefficients (flat or
-    cilm) are zero-padded to the model's La; coefficients above it must be 0.
-
-    Raises
-    ------
-    InvalidArgumentError
-        If the file cannot be read or does not fit the model.
-    """
+def _read_values(path: Path, what: str) -> np.ndarray:
+    """The array of a parameter file: a fit's ``result.h5`` (its solution) or ``summary.json`` (its cilm), a
+    ``.npy`` array, or text with one value per line."""
     try:
         if path.suffix == ".h5":
             with h5py.File(path, "r") as f:
@@ -72,7 +67,20 @@ def read_initial(path: Path, model) -> np.ndarray:
         else:
             value = np.loadtxt(path, ndmin=1)
     except (OSError, KeyError, ValueError, TypeError, EOFError) as exc:
-        raise InvalidArgumentError(f"cannot read a starting point from {path}: {exc or type(exc).__name__}") from None
+        raise InvalidArgumentError(f"cannot read {what} from {path}: {exc or type(exc).__name__}") from None
+    return value
+
+
+def read_initial(path: Path, model) -> np.ndarray:
+    """A starting point for ``model`` from a file (:func:`_read_values`' formats).  Harmonic coefficients (flat or
+    cilm) are zero-padded to the model's La; coefficients above it must be 0.
+
+    Raises
+    ------
+    InvalidArgumentError
+        If the file cannot be read or does not fit the model.
+    """
+    value = _read_values(path, "a starting point")
     if isinstance(model, HarmonicModel):
         a = as_coefficients(value)
         if a.size > model.nparams and np.any(a[model.nparams:] != 0):
@@ -84,6 +92,19 @@ def read_initial(path: Path, model) -> np.ndarray:
     if value.shape != (model.nparams,):
         raise InvalidArgumentError(f"{path} holds {value.size} values; the mesh model has {model.nparams} vertices")
     return value
+
+
+def read_truth(path: Path) -> ConformalFactor:
+    """The true rho of a target, from harmonic coefficients (flat or cilm) in any of :func:`_read_values`' formats.
+
+    Raises
+    ------
+    InvalidArgumentError, NotPositiveError
+        If the file cannot be read, holds no harmonic coefficients, or its rho is not positive.
+    """
+    rho = ConformalFactor(as_coefficients(_read_values(path, "the true rho")), name=f"truth ({path.name})")
+    rho.check_positive()
+    return rho
 
 
 #: Relative L2 accuracy of rho that the planned K (no --numeig) gives a fit reaching its residual_tol.
@@ -116,6 +137,8 @@ def register(subparsers) -> None:
     p.add_argument("--reg", type=float, default=d.reg, metavar="R", help="regularization weight R (dimensionless)")
     p.add_argument("--starts", type=int, default=d.starts, metavar="N", help="random starts")
     p.add_argument("--seed", type=int, default=d.seed, metavar="S", help="random seed")
+    p.add_argument("--truth", type=Path, default=None, metavar="FILE",
+                   help="the true rho (coefficients: .npy, text, summary.json, result.h5): report the aligned error")
 
     runs = p.add_argument_group("runs")
     runs.add_argument("--workers", type=int, default=None, metavar="N", help="run the starts on N local processes")
@@ -280,6 +303,8 @@ def _fit(args) -> int:
     with mesh_progress(not args.quiet):  # a large mesh target: its size, and progress through cMCF and eigenpairs
         target = parse_target(args.target, lmax=args.lmax, numeig=numeig, lmax_factor=args.lmax_factor,
                               source=args.source, subdivisions=args.subdivisions)
+    if args.truth is not None:
+        target = dataclasses.replace(target, truth=read_truth(args.truth))
     if planned is not None and target.numeig < planned["numeig"]:
         print(f"warning: the target has only {target.numeig} eigenvalues; the plan asked for {planned['numeig']}",
               file=sys.stderr)
@@ -330,4 +355,8 @@ def _fit(args) -> int:
     print(f"best start {best.index}: energy {best.energy:.3e}, max relative residual {best.relative_residual:.3e}; "
           f"{result.success_count}/{len(result.starts)} starts succeeded (residual <= {options.success_tol:g}); "
           f"{result.seconds:.1f} s; wrote {out}")
+    aligned = json.loads((out / "summary.json").read_text()).get("alignment")
+    if aligned and "relative_error" in aligned:  # the truth is known (--truth, or a target that carries it)
+        print(f"against the truth, after Moebius centering and the best element of O(3): relative L2 error of rho "
+              f"{aligned['relative_error']:.2g}, of its per-degree power {aligned['power_error']:.2g}")
     return 130 if result.interrupted else 0

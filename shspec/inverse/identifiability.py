@@ -65,6 +65,11 @@ class Identifiability:
         Relative error of p per unit relative eigenvalue noise (over the determined directions).
     singular_values : (min(K−1, d),) array
     underdetermined : bool
+    converged : bool or None
+        For the end point of a fit: whether it reached its target (residual within the success tolerance).  The
+        linearized ``estimated_error`` holds only there: at a local minimum the residual is nearly orthogonal to
+        the range of J (the gradient Jᵀr vanishes), so J⁺r is small however far the point is from the truth; it
+        is then reported as unknown (:attr:`error_estimate`).  None: an analysis at a given point, not a fit's end.
     """
 
     numeig: int
@@ -77,14 +82,27 @@ class Identifiability:
     noise_gain: float
     singular_values: np.ndarray
     underdetermined: bool
+    converged: bool | None = None
+
+    @property
+    def error_estimate(self) -> float | None:
+        """The relative error of p that the final residual leaves, where that estimate holds; None where it is
+        unknown (a fit that did not converge, or no residual)."""
+        return None if self.converged is False else self.estimated_error
 
     def to_dict(self) -> dict:
-        """JSON-ready (singular values as a list)."""
-        return {"numeig": self.numeig, "free": self.free, "symmetries": self.symmetries,
-                "directions": self.directions, "rank": self.rank,
-                "condition": None if not np.isfinite(self.condition) else float(self.condition),
-                "estimated_error": self.estimated_error, "noise_gain": float(self.noise_gain),
-                "underdetermined": self.underdetermined, "singular_values": self.singular_values.tolist()}
+        """JSON-ready (singular values as a list); ``estimated_error`` is None where the error is unknown."""
+        out = {"numeig": self.numeig, "free": self.free, "symmetries": self.symmetries,
+               "directions": self.directions, "rank": self.rank,
+               "condition": None if not np.isfinite(self.condition) else float(self.condition),
+               "estimated_error": self.error_estimate, "noise_gain": float(self.noise_gain),
+               "underdetermined": self.underdetermined, "singular_values": self.singular_values.tolist()}
+        if self.converged is not None:
+            out["converged"] = self.converged
+        if self.converged is False:
+            out["error"] = ("unknown: the fit did not converge to its target, and a residual left at a local "
+                            "minimum says nothing about the distance to the truth")
+        return out
 
     def statement(self) -> str:
         """One sentence for the console: what K eigenvalues say about the parameters."""
@@ -94,7 +112,10 @@ class Identifiability:
         text = (f"{self.numeig} eigenvalues determine all {self.directions} free directions (condition "
                 f"{self.condition:.2g}); relative noise sigma on the eigenvalues gives a relative error of about "
                 f"{self.noise_gain:.2g}*sigma")
-        if self.estimated_error is not None:
+        if self.converged is False:
+            text += ("; the fit did not converge to its target, so the error of the fitted parameters is unknown "
+                     "(a residual at a local minimum says nothing about the distance to the truth)")
+        elif self.estimated_error is not None:
             text += f"; the final residual leaves an estimated relative error of {self.estimated_error:.2g}"
         return text
 

@@ -7,6 +7,7 @@ They hold data and what is derived from it (the best start, its factor, identifi
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -105,7 +106,8 @@ class FitResult:
 
     def identifiability(self):
         """What the matched eigenvalues determine at the best solution
-        (:func:`~shspec.inverse.identifiability.identifiability`, with its final residuals).  Computed once."""
+        (:func:`~shspec.inverse.identifiability.identifiability`, with its final residuals), and whether that
+        solution converged: where it did not, its error is reported as unknown.  Computed once."""
         if "_identifiability" not in self.__dict__:
             best = self.best
             k = best.eigenvalues.size
@@ -113,8 +115,9 @@ class FitResult:
             rel = np.zeros(k)
             rel[1:] = (best.eigenvalues[1:] - ref[1:]) / ref[1:]
             # frozen: the memo goes straight into the instance dict (it is derived, not state)
-            object.__setattr__(self, "_identifiability", identifiability(
-                self.model, best.params, k, fit_area=fits_area(self.options, self.target), residuals=rel))
+            ident = identifiability(self.model, best.params, k, fit_area=fits_area(self.options, self.target),
+                                    residuals=rel)
+            object.__setattr__(self, "_identifiability", dataclasses.replace(ident, converged=bool(best.success)))
         return self.__dict__["_identifiability"]
 
     def alignment(self):

@@ -726,3 +726,44 @@ def test_cli_stage_basis_tolerance_takes_a_positive_number_or_none():
     for bad in ("0", "-1e-5", "tiny"):
         with pytest.raises(argparse.ArgumentTypeError, match="positive tolerance or 'none'"):
             _optional_tol(bad)
+
+
+def test_a_fit_stopped_in_a_wrong_basin_reports_its_error_as_unknown():
+    """From the blob with one degree block turned (an escape move), LM without hops ends in a local minimum (64
+    eigenvalues, degree 6): the linearized estimate there is tiny (at a stationary point the residual is nearly
+    orthogonal to the Jacobian's range) while rho is off by percent, so the result must call its error unknown
+    instead of printing that number."""
+    from shspec.inverse.output import summary
+
+    target, model = harmonic_target(blob_factor(), 12, 64), HarmonicModel(12, 6)
+    wrong = model.escape_moves(blob_factor().coefficients)[7]
+    options = FitOptions(starts=1, basin_hops=0, schedule=(Stage(),), max_iter=100)
+    result = fit(target, model, options, init=wrong)
+    assert not result.best.success and result.best.relative_residual > 1e-6
+    measured = align(result.factor(), target.truth).relative_error
+    ident = result.identifiability()
+    assert measured > 0.01 and ident.estimated_error < 0.01 * measured  # what used to be printed: far too small
+    assert ident.converged is False and ident.error_estimate is None
+    assert "unknown" in ident.statement() and "estimated relative error" not in ident.statement()
+    record = summary(result)["identifiability"]
+    assert record["estimated_error"] is None and record["error"].startswith("unknown") and not record["converged"]
+    converged = fit(target, model, options, init=model.escape_moves(blob_factor().coefficients)[2])
+    assert converged.best.success and converged.identifiability().error_estimate is not None
+
+
+def test_cli_fit_takes_the_truth_from_a_file_and_reports_the_aligned_error(tmp_path, capsys):
+    truth = ConformalFactor(random_centred_coefficients(2, 4, 0.15))
+    spectrum = tmp_path / "spectrum.txt"
+    np.savetxt(spectrum, HarmonicModel(10, 4).eigenvalues(truth.coefficients, 25))
+    np.save(tmp_path / "truth.npy", truth.to_cilm())  # a cilm array: any coefficient format is taken
+    args = ["fit", "--target", f"spectrum:{spectrum}", "--lmax", "10", "--lmax-factor", "4", "--numeig", "25",
+            "--starts", "2", "--quiet"]
+    assert main(args + ["--truth", str(tmp_path / "truth.npy"), "--out", str(tmp_path / "fit")]) == 0
+    summary = json.loads((tmp_path / "fit" / "summary.json").read_text())
+    err = capsys.readouterr().out
+    assert summary["alignment"]["relative_error"] < 1e-8 and "relative L2 error of rho" in err
+    assert main(args + ["--out", str(tmp_path / "blind")]) == 0  # without it: no truth, no alignment
+    assert "alignment" not in json.loads((tmp_path / "blind" / "summary.json").read_text())
+    (tmp_path / "bad.txt").write_text("not a number\n")
+    assert main(args + ["--truth", str(tmp_path / "bad.txt"), "--out", str(tmp_path / "bad")]) == 1
+    assert "cannot read the true rho" in capsys.readouterr().err
