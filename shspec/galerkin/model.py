@@ -361,7 +361,8 @@ class HarmonicModel(SpectralModel):
         noise = random_coefficients(rng, new, amplitude * out[0], low=old + 1)
         for _ in range(30):
             out[ncoeffs(old):ncoeffs(new)] = noise[ncoeffs(old):]
-            if _minimum(out[:ncoeffs(new)]) > 0:
+            # certified as the solves certify it: a start that is positive but cannot be certified would end the fit
+            if _certified(out[:ncoeffs(new)]):
                 return out
             noise = noise * 0.5
         return params  # pragma: no cover - a positive ρ stays positive under a small enough change
@@ -447,6 +448,15 @@ _OCTAHEDRAL_EULER = _octahedral_euler()
 
 def _minimum(params) -> float:
     return ConformalFactor(np.array(params)).minimum().value  # a copy: ConformalFactor freezes its array
+
+
+def _certified(params) -> bool:
+    """Whether ρ passes the certified positivity check of a solve (:meth:`ConformalFactor.check_positive`)."""
+    try:
+        ConformalFactor(np.array(params)).check_positive()
+    except NotPositiveError:
+        return False
+    return True
 
 
 def forward_need(lmax: int, lmax_factor: int, *, with_table: bool = True) -> Need:

@@ -6,6 +6,7 @@ import time
 
 import numpy as np
 
+from ..errors import NotPositiveError
 from ..spectral_model import SpectralModel
 from .hops import basin_hop, orient_new_block
 from .optimize import make_optimizer
@@ -51,8 +52,18 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
         elif not resumed:
             params = problem.enter_stage(s, params, np.random.default_rng([*rng_seed, s + 1]))
             progress.stage, progress.base = s, params
-        obj = problem.objective(s, progress.base)
-        optimizer = make_optimizer(problem.optimizer, obj, obj.initial(), opt, progress.state if resumed else None)
+        try:
+            obj = problem.objective(s, progress.base)
+            optimizer = make_optimizer(problem.optimizer, obj, obj.initial(), opt,
+                                       progress.state if resumed else None)
+        except NotPositiveError as exc:
+            if progress.params is None:  # the start itself is no metric: nothing to keep
+                raise
+            # positivity never ends a fit: the start ends at the best state it reached, and says why
+            progress.status = "stopped: the start of the next stage is not a metric"
+            progress.say(opt, f"  start {progress.index} stage {s}: {progress.status} ({exc}); keeping the state of "
+                              f"stage {s - 1}")
+            return progress.result(progress.status, time.perf_counter() - t0, opt.success_tol)
         max_iter = problem.stages[s].max_iter or opt.max_iter
 
         def record():

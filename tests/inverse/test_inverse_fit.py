@@ -767,3 +767,25 @@ def test_cli_fit_takes_the_truth_from_a_file_and_reports_the_aligned_error(tmp_p
     (tmp_path / "bad.txt").write_text("not a number\n")
     assert main(args + ["--truth", str(tmp_path / "bad.txt"), "--out", str(tmp_path / "bad")]) == 1
     assert "cannot read the true rho" in capsys.readouterr().err
+
+
+def test_a_stage_whose_start_is_not_a_metric_ends_the_start_not_the_fit(small, monkeypatch, tmp_path):
+    """Positivity never ends a fit: when a stage cannot start (here its perturbed start is made negative), the start
+    ends at the best state of the stage before, says why, and the fit goes on and writes its result."""
+    from shspec.inverse.output import write_result
+    from shspec.inverse.problem import FitProblem
+
+    target, model = small
+    original = FitProblem.enter_stage
+
+    def broken(self, s, params, rng):
+        out = original(self, s, params, rng)
+        return -out if s == 1 else out  # rho < 0 everywhere: no metric
+
+    monkeypatch.setattr(FitProblem, "enter_stage", broken)
+    result = fit(target, model, FitOptions(starts=2, max_iter=5, basin_hops=0, schedule=(Stage(4), Stage(6))))
+    assert [s.status for s in result.starts] == ["stopped: the start of the next stage is not a metric"] * 2
+    assert all(np.all(s.history[:, 0] == 0) and s.params[0] > 0 for s in result.starts)  # stage 0's own states
+    write_result(result, tmp_path / "out")
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["starts"][0]["status"].startswith("stopped") and summary["identifiability"]["converged"] is False
