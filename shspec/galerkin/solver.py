@@ -93,10 +93,8 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
                                                     extrapolate=True))
     if estimate.total > truncation_tol:
         warnings.warn(f"the spectrum of {factor.name} at Lb = {lmax}, La = {model.lmax_factor} may be off by "
-                      f"{_percent(estimate.total)} (relative): cutting rho at La {_percent(estimate.factor)}, the "
-                      f"basis (change from Lb-2) {_percent(estimate.basis)}; if rho's expansion is itself cut, its "
-                      f"unresolved degrees {_percent(estimate.unresolved)}; raise the band limits (see "
-                      "shspec.galerkin.truncation)", TruncationWarning, stacklevel=2)
+                      f"{_percent(estimate.total)} (relative): "
+                      + _truncation_advice(estimate, factor, lmax, model.lmax_factor), TruncationWarning, stacklevel=2)
     return dataclasses.replace(result, truncation=estimate)
 
 
@@ -110,6 +108,20 @@ def _as_input_factor(rho) -> ConformalFactor:
     except (TypeError, ValueError) as exc:
         raise InvalidArgumentError(f"rho must be a ConformalFactor, flat coefficients, a cilm array or SHCoeffs "
                                    f"of numbers; got {type(rho).__name__}: {exc}") from None
+
+
+def _truncation_advice(estimate: TruncationEstimate, factor: ConformalFactor, lmax: int, la: int) -> str:
+    """Which band limit to raise, and to what, in words: the larger of the two estimated errors decides."""
+    if not estimate.basis >= estimate.factor:  # NaN basis (Lb < 3) counts as the smaller
+        wanted = min(factor.lmax, 2 * lmax)
+        more = (f"raise lmax_factor from {la} to {wanted}, rho's own degree" if wanted > la else
+                f"rho has degree {factor.lmax} but a basis of degree Lb couples degrees up to 2*Lb only: raise lmax "
+                f"to at least {-(-factor.lmax // 2)}")
+        return (f"cutting rho at degree {la} drops a part that moves the eigenvalues by up to "
+                f"{_percent(estimate.factor)}; {more}")
+    return (f"the eigenvalues still change by {_percent(estimate.basis)} between the bases of degree {lmax - 2} and "
+            f"{lmax}: raise lmax above {lmax} until that change is below the tolerance (the change falls about "
+            "geometrically with the degree for a smooth rho)")
 
 
 def _percent(x: float) -> str:

@@ -86,3 +86,11 @@ def test_forward_warns_in_one_line_and_saves_its_input(tmp_path, capsys):
     assert main(["forward", "--lmax", "8", "--numeig", "4", "--out", str(js)]) == 0
     record = json.loads(js.read_text())
     assert len(record["rho_coefficients"]) == 81 and record["truncation_error_factor"] == 0.0
+
+
+def test_the_warning_names_the_band_limit_to_raise_and_to_what():
+    rho = ConformalFactor.mobius_boost(2.0, lmax=30)
+    with pytest.warns(TruncationWarning, match=r"between the bases of degree 10 and 12: raise lmax above 12"):
+        spectrum(rho, lmax=12, k=25)
+    with pytest.warns(TruncationWarning, match=r"cutting rho at degree 8 .* raise lmax_factor from 8 to 30"):
+        spectrum(rho, lmax=30, k=25, lmax_factor=8)
