@@ -80,11 +80,15 @@ def test_random_byte_damage_never_passes(tmp_path):
         np.testing.assert_array_equal(table.values, build_table(8, 4).values)
 
 
-def test_wrong_version_and_limits(tmp_path):
+def _cached_table_of_format(tmp_path, version):
+    """A cached (10, 6) table whose file claims the format ``version``."""
     get_table(10, 6, cache_dir=tmp_path)
-    path = table_path(10, 6, tmp_path)
-    with h5py.File(path, "r+") as f:
-        f.attrs["format_version"] = 99
+    with h5py.File(table_path(10, 6, tmp_path), "r+") as f:
+        f.attrs["format_version"] = version
+
+
+def test_wrong_version_and_limits(tmp_path):
+    _cached_table_of_format(tmp_path, 99)
     with pytest.raises(TableMismatchError, match="format version 99"):
         load_table(10, 6, tmp_path)
     get_table(8, 4, cache_dir=tmp_path)
@@ -94,10 +98,7 @@ def test_wrong_version_and_limits(tmp_path):
 
 
 def test_a_table_of_an_older_format_is_rebuilt_with_a_warning(tmp_path):
-    get_table(10, 6, cache_dir=tmp_path)
-    path = table_path(10, 6, tmp_path)
-    with h5py.File(path, "r+") as f:
-        f.attrs["format_version"] = 1
+    _cached_table_of_format(tmp_path, 1)
     with pytest.raises(OutdatedTableError, match="older shspec \\(format version 1"):
         load_table(10, 6, tmp_path)
     with pytest.raises(OutdatedTableError):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import h5py
 import numpy as np
 import pytest
@@ -85,3 +87,27 @@ def test_result_file_lists_starts_in_index_order_and_checks_itself(small, tmp_pa
         f["solution"][3] += 1.0
     with pytest.raises(CheckpointError, match="r.h5.*checksum"):
         load_result_summary(path)
+
+
+def test_a_target_moved_by_ulps_still_resumes(small, tmp_path, monkeypatch):
+    # the blob target is computed: a rebuilt cache table used to move it by a few ulps, and the hash of its bytes
+    # in the fingerprint then called the checkpoint "of another fit"
+    target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, monkeypatch)
+    moved = dataclasses.replace(target, eigenvalues=np.nextafter(target.eigenvalues, np.inf))
+    resumed = fit(moved, model, opts, resume=True)
+    assert not resumed.interrupted and len(resumed.starts) == opts.starts
+    # it goes on with the checkpoint's target, and ends where the uninterrupted fit ends
+    assert np.array_equal(resumed.target.eigenvalues, target.eigenvalues)
+    whole = fit(target, model, dataclasses.replace(opts, checkpoint_path=str(tmp_path / "whole.h5")))
+    for a, b in zip(resumed.starts, whole.starts):
+        assert np.array_equal(a.params, b.params) and a.energy == b.energy
+
+
+def test_another_target_is_still_refused(small, tmp_path, monkeypatch):
+    target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, monkeypatch)
+    other = dataclasses.replace(target, eigenvalues=target.eigenvalues * (1 + 1e-9))
+    with pytest.raises(CheckpointError, match="another target spectrum"):
+        fit(other, model, opts, resume=True)
+    fewer = dataclasses.replace(target, eigenvalues=target.eigenvalues[:-1])
+    with pytest.raises(CheckpointError, match="another fit"):
+        fit(fewer, model, opts, resume=True)
