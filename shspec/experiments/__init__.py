@@ -1,6 +1,6 @@
 """Reproducible experiments of the study, one command each (``shspec experiment NAME``)."""
 
-from . import (identifiability, pl_basin, pl_bunny, pl_numeig, pl_perturbation, sh_convergence,  # noqa: F401  (registration)
+from . import (identifiability_study, pl_basin, pl_bunny, pl_numeig, pl_perturbation, sh_convergence,  # noqa: F401  (registration)
                sh_inverse)
 from .base import EXPERIMENTS, Experiment, Finding, run_experiment
 

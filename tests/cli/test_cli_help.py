@@ -55,3 +55,24 @@ def test_precompute_runs_as_a_subcommand_of_the_installed_entry_point(tmp_path):
     out = subprocess.run([sys.executable, "-m", "shspec", "precompute", "list", "--cache-dir", str(tmp_path)],
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and "(--cache-dir;" in out.stdout
+
+
+def _subparsers():
+    return build_parser()._subparsers._group_actions[0].choices
+
+
+def test_fit_help_fits_a_terminal_and_every_option_states_what_it_does(monkeypatch):
+    monkeypatch.setenv("COLUMNS", "80")
+    text = _subparsers()["fit"].format_help()
+    assert len(text.splitlines()) <= 80
+    fit_parser = _subparsers()["fit"]
+    for action in fit_parser._actions:
+        if action.dest != "help":
+            assert action.help and len(action.help) > 10, action.dest
+
+
+@pytest.mark.parametrize("command", sorted(build_parser()._subparsers._group_actions[0].choices))
+def test_no_help_cites_a_benchmark_file_or_a_result(command, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "100")
+    text = _subparsers()[command].format_help()
+    assert "benchmarks/" not in text and "bench_" not in text
