@@ -12,7 +12,7 @@ from ._version import __version__
 from .embed import EmbedOptions, EmbedResult, embed
 from .errors import *  # noqa: F401,F403
 from .errors import __all__ as _errors_all
-from .galerkin import HarmonicModel, SpectrumResult, convergence, convergence_in_factor, spectrum
+from .galerkin import HarmonicModel, LogHarmonicModel, SpectrumResult, convergence, convergence_in_factor, spectrum
 from .gaunt import GauntTable, get_table, real_gaunt, wigner3j
 from .inverse import FitOptions, FitResult, Stage, Target, align, fit
 from .mesh import CMCFOptions, CMCFResult, MeshModel, TriangleMesh, cmcf, load_mesh, mesh_spectrum, save_mesh
@@ -26,7 +26,7 @@ __all__ = [
     # engine
     "wigner3j", "real_gaunt", "GauntTable", "get_table",
     # forward
-    "ConformalFactor", "HarmonicModel", "SpectrumResult", "spectrum", "convergence", "convergence_in_factor",
+    "ConformalFactor", "HarmonicModel", "LogHarmonicModel", "SpectrumResult", "spectrum", "convergence", "convergence_in_factor",
     # inverse
     "FitOptions", "FitResult", "Stage", "Target", "fit", "align",
     # meshes and re-embedding

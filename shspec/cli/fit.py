@@ -19,7 +19,7 @@ from ..atomic import write_text
 from ..checks import real_array
 from ._common import whole_number
 from ..errors import InvalidArgumentError, OutputError
-from ..galerkin import HarmonicModel
+from ..galerkin import HarmonicModel, LogHarmonicModel
 from .help_format import HelpFormatter
 from ..inverse.planning import plan_numeig
 from ..inverse.checkpoint import claim_checkpoint
@@ -43,6 +43,10 @@ from ..sphere.random import random_centred_coefficients
 
 def _harmonic(args, target: Target) -> HarmonicModel:
     return HarmonicModel(args.lmax, args.lmax_factor)
+
+
+def _log_harmonic(args, target: Target) -> LogHarmonicModel:
+    return LogHarmonicModel(args.lmax, args.lmax_factor)
 
 
 def _mesh(args, target: Target) -> MeshModel:
@@ -81,7 +85,7 @@ def read_initial(path: Path, model) -> np.ndarray:
         If the file cannot be read or does not fit the model.
     """
     value = _read_values(path, "a starting point")
-    if isinstance(model, HarmonicModel):
+    if isinstance(model, (HarmonicModel, LogHarmonicModel)):  # the log model's parameters are log rho's coefficients
         a = as_coefficients(value)
         if a.size > model.nparams and np.any(a[model.nparams:] != 0):
             raise InvalidArgumentError(f"the starting rho in {path} has degree > La = {model.lmax_factor}")
@@ -111,7 +115,7 @@ def read_truth(path: Path) -> ConformalFactor:
 PLANNED_ACCURACY = 1e-8
 
 #: The discretizations ``--model`` chooses from: name -> builder(args, target).
-MODELS = {"harmonic": _harmonic, "mesh": _mesh}
+MODELS = {"harmonic": _harmonic, "log": _log_harmonic, "mesh": _mesh}
 
 
 def register(subparsers) -> None:
@@ -126,8 +130,8 @@ def register(subparsers) -> None:
                    help="blob | star:l,m,p | mesh:PATH or a shipped mesh (mesh:spot_600) | spectrum:FILE (text, "
                    "CSV, .npy, .json; see the user guide)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
-    p.add_argument("--model", choices=tuple(MODELS), default="harmonic", metavar="{harmonic,mesh}",
-                   help="harmonic coefficients of rho, or per-vertex factors on the target's cMCF sphere")
+    p.add_argument("--model", choices=tuple(MODELS), default="harmonic", metavar="MODEL",
+                   help="harmonic: rho's coefficients; log: log rho's (rho > 0 always); mesh: per-vertex factors")
     p.add_argument("--lmax-factor", type=whole_number(1, "the degree La of rho; at 0 rho is constant, a round sphere"),
                    default=15, metavar="La", help="degree La of rho (harmonic model)")
     p.add_argument("--lmax", type=int, default=None, metavar="Lb", help="basis degree Lb (default: planned for the target)")
@@ -268,9 +272,10 @@ def _plan(args) -> dict | None:
     if args.numeig is not None:
         args.lmax = 30 if args.lmax is None else args.lmax
         return None
-    if args.model != "harmonic":
+    if args.model == "mesh":
         args.numeig, args.lmax = 256, 30 if args.lmax is None else args.lmax
         return None
+    # the log model takes the plan of a harmonic rho of the same degree: the same number of unknowns
     plan = plan_numeig(args.lmax_factor, random_centred_coefficients(args.seed, args.lmax_factor, 0.2),
                        noise=FitOptions().residual_tol, accuracy=PLANNED_ACCURACY)
     if plan.numeig is None:

@@ -38,12 +38,16 @@ class GridQuadraticForms:
         Basis band limit Lb (vectors have (Lb+1)² rows).
     lmax_factor : int
         Factor band limit La (Q has (La+1)² rows), at most 2·Lb.
+    grid_degree : int, optional
+        Degree of the GLQ grid; default ⌈(2·Lb + La)/2⌉, the smallest that integrates Y_k f_q² exactly.  A
+        finer grid serves a weight that is not band-limited (``weight`` of :meth:`__call__`).
     """
 
-    def __init__(self, lmax: int, lmax_factor: int):
+    def __init__(self, lmax: int, lmax_factor: int, grid_degree: int | None = None):
         self.lmax = check_degree(lmax, "lmax", minimum=1)
         self.lmax_factor = check_degree(lmax_factor, "lmax_factor", maximum=2 * self.lmax)
-        grid = glq_grid(-(-(2 * self.lmax + self.lmax_factor) // 2))
+        exact = -(-(2 * self.lmax + self.lmax_factor) // 2)
+        grid = glq_grid(exact if grid_degree is None else check_degree(grid_degree, "grid_degree", minimum=exact))
         self.grid = grid
         lp = max(self.lmax, self.lmax_factor)
         with PYSHTOOLS_LOCK:
@@ -66,9 +70,10 @@ class GridQuadraticForms:
         ls = np.arange(abs(m), lmax + 1)
         return ls * ls + ls + m, np.ascontiguousarray(plm[:, ls * (ls + 1) // 2 + abs(m)])
 
-    def __call__(self, vecs: np.ndarray) -> np.ndarray:
-        """Q (nfactor, nq) for the columns of ``vecs`` (nbasis, nq)."""
-        values = self._squares(vecs)  # (nlat, nq, nlon)
+    def __call__(self, vecs: np.ndarray, weight: np.ndarray | None = None) -> np.ndarray:
+        """Q (nfactor, nq) for the columns of ``vecs`` (nbasis, nq); with ``weight`` (grid values, (nlat, nlon)),
+        the quadrature of w·Y_k·f_q² instead."""
+        values = self._squares(vecs, weight)  # (nlat, nq, nlon)
         nlat, nq, nlon = values.shape
         proj = (values.reshape(nlat * nq, nlon) @ self._trig_factor).reshape(nlat, nq, -1)  # (nlat, nq, 2La+1)
         proj = np.ascontiguousarray(proj.transpose(2, 0, 1))
@@ -77,10 +82,10 @@ class GridQuadraticForms:
             result[idx] = pw @ block
         return result
 
-    def weighted(self, vecs: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    def weighted(self, vecs: np.ndarray, coef: np.ndarray, weight: np.ndarray | None = None) -> np.ndarray:
         """Σ_q coef_q v_qᵀ G_k v_q (nfactor,): Q @ coef without forming Q (one function Σ_q coef_q f_q² to
-        project)."""
-        values = self._squares(vecs)
+        project); ``weight`` as in :meth:`__call__`."""
+        values = self._squares(vecs, weight)
         coef = np.asarray(coef, dtype=float)
         if coef.shape != (values.shape[1],):
             raise InvalidArgumentError(f"coef must have shape ({values.shape[1]},), got {coef.shape}")
@@ -91,8 +96,9 @@ class GridQuadraticForms:
             result[idx] = pw @ col
         return result
 
-    def _squares(self, vecs: np.ndarray) -> np.ndarray:
-        """f_q² on the grid, (nlat, nq, nlon), for the columns of ``vecs`` (nbasis, nq)."""
+    def _squares(self, vecs: np.ndarray, weight: np.ndarray | None = None) -> np.ndarray:
+        """f_q² (times ``weight``, (nlat, nlon), if given) on the grid, (nlat, nq, nlon), for the columns of
+        ``vecs`` (nbasis, nq)."""
         vecs = np.asarray(vecs, dtype=float)
         if vecs.ndim != 2 or vecs.shape[0] != self.nbasis:
             raise InvalidArgumentError(f"vectors must have shape ({self.nbasis}, q), got {vecs.shape}")
@@ -103,7 +109,14 @@ class GridQuadraticForms:
             np.matmul(p, vecs[idx], out=out)
         values = legendre.reshape(len(self._basis), nlat * nq).T @ self._trig_basis  # (nlat·nq, nlon)
         np.square(values, out=values)
-        return values.reshape(nlat, nq, -1)
+        values = values.reshape(nlat, nq, -1)
+        if weight is not None:
+            weight = np.asarray(weight, dtype=float)
+            if weight.shape != (nlat, values.shape[2]):
+                raise InvalidArgumentError(f"weight must be grid values of shape {(nlat, values.shape[2])}, got "
+                                           f"{weight.shape}")
+            values *= weight[:, None, :]
+        return values
 
 
 def _trig(m: int, lon: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable, plan_bytes, table_size
 from ..spectral_model import SpectralModel, Spectrum, regularization_weight
 from ..resources import Need, check_need
 from ..sphere.factor import ConformalFactor
-from ..sphere.harmonics import check_degree, degree_order, degrees, ncoeffs
+from ..sphere.harmonics import check_degree, degree_order, degrees, lmax_of_size, ncoeffs
 from ..sphere.random import random_centred_coefficients, random_coefficients
 from ..sphere.rotate import power_spectrum, rotate_coefficients
 from ..threads import serialized
@@ -324,30 +324,10 @@ class HarmonicModel(SpectralModel):
         (Lb 42) and tol 1e-5, the stage of degree 8 and 100 eigenvalues gets Lb' = 18 (361 basis functions instead
         of 1849) and that of 400 eigenvalues Lb' = 35; choosing all 18 took about 18 s.
         """
-        sub = self.restrict(level)
-        la = sub.lmax_factor
-        numeig = check_int(numeig, "numeig", minimum=2)
-        tol = check_float(tol, "tol", positive=True)
-        ref = random_centred_coefficients(0, la, 0.2)
-        want = sub.eigenvalues(ref, numeig)[1:]
-
-        def agrees(lb):
+        return smallest_agreeing_basis(
+            self, level, numeig, tol,
             # an unregistered table: the probes of the bisection are not kept in the shared one
-            probe = HarmonicModel(lb, la, table=self.table.restrict(lb, la, keep=False))
-            return np.max(np.abs(probe.eigenvalues(ref, numeig)[1:] / want - 1.0)) <= tol
-
-        lo, hi = basis_degree_for(numeig, la), self.lmax  # agrees(hi) holds; find the smallest that agrees
-        if lo >= hi:
-            return None
-        if agrees(lo):
-            hi = lo
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            if agrees(mid):
-                hi = mid
-            else:
-                lo = mid
-        return None if hi == self.lmax else hi
+            lambda lb, la: HarmonicModel(lb, la, table=self.table.restrict(lb, la, keep=False)))
 
     def enter_level(self, params: np.ndarray, old: int | None, new: int | None, rng: np.random.Generator,
                     amplitude: float) -> np.ndarray:
@@ -379,17 +359,7 @@ class HarmonicModel(SpectralModel):
         a = np.asarray(params, dtype=float)
         if a.shape != (self.nparams,):
             raise InvalidArgumentError(f"expected {self.nparams} coefficients, got shape {a.shape}")
-        l, m = degree_order(self.lmax_factor)
-        partner = np.arange(a.size) - 2 * m  # the index of (l, −m)
-
-        def lz(v):
-            return np.where(m > 0, -m * v[partner], 0.0) + np.where(m < 0, -m * v[partner], 0.0)
-
-        out = [lz(a)]
-        for angles in ((0.0, np.pi / 2, 0.0), (0.0, np.pi / 2, np.pi / 2)):
-            inverse = (-angles[2], -angles[1], -angles[0])
-            out.append(rotate_coefficients(lz(rotate_coefficients(a, np.array(inverse))), np.array(angles)))
-        return np.stack(out, axis=1)
+        return rotation_generators(a)
 
     def escape_moves(self, params: np.ndarray, level: int | None = None, *, newest: bool = False) -> list:
         """Power-preserving moves of one degree block l ≥ 2 (l ≤ level).
@@ -405,29 +375,7 @@ class HarmonicModel(SpectralModel):
         on degree l as (−1)^l) — its orientation relative to the blocks fitted before it.
         """
         la = self.lmax_factor if level is None else self.restrict(level).lmax_factor
-        params = np.asarray(params, dtype=float)
-        l_all = degrees(la)
-        blocks = [la] if newest else range(2, la + 1)
-        moves = []
-        for l in blocks:
-            if l < 2:
-                continue
-            sel = l_all == l
-            sub = np.where(sel, params[:l_all.size], 0.0)
-            if newest:
-                turns = [rotate_coefficients(sub, angles) for angles in _OCTAHEDRAL_EULER[1:]]
-                if l % 2:
-                    turns += [-rotate_coefficients(sub, angles) for angles in _OCTAHEDRAL_EULER]
-            else:
-                turns = [rotate_coefficients(sub, np.array(ang)) for ang in ((np.pi, 0, 0), (0, np.pi, 0),
-                                                                               (np.pi, np.pi, 0))]
-                if l % 2:
-                    turns += [-t for t in turns] + [-sub]
-            for turn in turns:
-                q = params.copy()
-                q[:l_all.size][sel] = turn[sel]
-                moves.append(q)
-        return moves
+        return block_moves(np.asarray(params, dtype=float), la, newest=newest)
 
     def to_factor(self, params: np.ndarray) -> ConformalFactor:
         return ConformalFactor(np.array(params, dtype=float), name="fit")
@@ -444,6 +392,77 @@ def _octahedral_euler() -> list:
 
 
 _OCTAHEDRAL_EULER = _octahedral_euler()
+
+
+def smallest_agreeing_basis(model, level: int | None, numeig: int, tol: float, probe) -> int | None:
+    """The smallest basis degree Lb' < Lb of ``model`` on which the first ``numeig`` eigenvalues at a reference of
+    degree ``level`` agree with those on Lb to ``tol`` (relative), or None if only Lb does: the bisection behind
+    :meth:`HarmonicModel.stage_basis`.  ``probe(lb, la)`` gives the model of factor degree la on the basis lb."""
+    sub = model.restrict(level)
+    la = sub.lmax_factor
+    numeig = check_int(numeig, "numeig", minimum=2)
+    tol = check_float(tol, "tol", positive=True)
+    ref = random_centred_coefficients(0, la, 0.2)
+    want = sub.eigenvalues(ref, numeig)[1:]
+
+    def agrees(lb):
+        return np.max(np.abs(probe(lb, la).eigenvalues(ref, numeig)[1:] / want - 1.0)) <= tol
+
+    lo, hi = basis_degree_for(numeig, la), model.lmax  # agrees(hi) holds; find the smallest that agrees
+    if lo >= hi:
+        return None
+    if agrees(lo):
+        hi = lo
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if agrees(mid):
+            hi = mid
+        else:
+            lo = mid
+    return None if hi == model.lmax else hi
+
+
+def rotation_generators(a: np.ndarray) -> np.ndarray:
+    """The three rotation generators applied to the function with flat coefficients ``a`` (n,), as (n, 3): L_z
+    exactly, and L_z conjugated by the exact rotations that take z to two other axes."""
+    l, m = degree_order(lmax_of_size(a.size))
+    partner = np.arange(a.size) - 2 * m  # the index of (l, −m)
+
+    def lz(v):
+        return np.where(m > 0, -m * v[partner], 0.0) + np.where(m < 0, -m * v[partner], 0.0)
+
+    out = [lz(a)]
+    for angles in ((0.0, np.pi / 2, 0.0), (0.0, np.pi / 2, np.pi / 2)):
+        inverse = (-angles[2], -angles[1], -angles[0])
+        out.append(rotate_coefficients(lz(rotate_coefficients(a, np.array(inverse))), np.array(angles)))
+    return np.stack(out, axis=1)
+
+
+def block_moves(params: np.ndarray, la: int, *, newest: bool = False) -> list:
+    """The power-preserving moves of single degree blocks 2 … ``la`` of flat coefficients (see
+    :meth:`HarmonicModel.escape_moves`); ``newest``: the octahedral grid of the block of degree ``la`` alone."""
+    l_all = degrees(la)
+    blocks = [la] if newest else range(2, la + 1)
+    moves = []
+    for l in blocks:
+        if l < 2:
+            continue
+        sel = l_all == l
+        sub = np.where(sel, params[:l_all.size], 0.0)
+        if newest:
+            turns = [rotate_coefficients(sub, angles) for angles in _OCTAHEDRAL_EULER[1:]]
+            if l % 2:
+                turns += [-rotate_coefficients(sub, angles) for angles in _OCTAHEDRAL_EULER]
+        else:
+            turns = [rotate_coefficients(sub, np.array(ang)) for ang in ((np.pi, 0, 0), (0, np.pi, 0),
+                                                                           (np.pi, np.pi, 0))]
+            if l % 2:
+                turns += [-t for t in turns] + [-sub]
+        for turn in turns:
+            q = params.copy()
+            q[:l_all.size][sel] = turn[sel]
+            moves.append(q)
+    return moves
 
 
 def _minimum(params) -> float:
