@@ -1,5 +1,8 @@
+"""``python -m shspec``: the command line (:func:`shspec.cli.main`)."""
+
 import sys
 
 from .cli import main
 
-sys.exit(main())
+if __name__ == "__main__":
+    sys.exit(main())

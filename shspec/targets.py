@@ -12,25 +12,27 @@ its area is used instead.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 
-from .checks import check_int, real_array
+from .checks import check_float, check_int, real_array
 from .errors import InvalidArgumentError
 from .galerkin.model import HarmonicModel
 from .mesh.bridge import fit_harmonic, mesh_band_limit
 from .mesh.cmcf import CMCFResult, cmcf
 from .mesh.cotan import cotan_stiffness, vertex_areas
 from .mesh.eigen import eigenpairs, mesh_spectrum
+from .mesh.builtin import resolve_mesh_path
 from .mesh.mesh_files import load_mesh
 from .mesh.shapes import star_surface
 from .mesh.triangle_mesh import TriangleMesh
 from .sphere.factor import ConformalFactor
 from .sphere.harmonics import flat_index, ncoeffs
-from .spectrum_file import read_spectrum
+from .spectrum_file import read_spectrum, read_spectrum_file
 
 __all__ = ["BLOB_HARMONIC", "blob_factor", "Target", "harmonic_target", "mesh_target", "spectrum_target",
            "read_spectrum", "estimate_area", "parse_target", "TARGET_SOURCES"]
@@ -90,6 +92,11 @@ class Target:
         Its per-vertex cMCF factors (mesh targets): the PL truth.
     source : str
         "harmonic", "pl", "cmcf" (see :data:`TARGET_SOURCES`) or "file".
+    errors : (k,) array or None
+        The target's own error: the absolute one-sigma uncertainty of each eigenvalue (measurement noise, a mesh's
+        discretization error); entry 0 is ignored (λ₀ = 0 exactly).  When known, a fit weighs eigenvalue i by
+        1/σ_i², succeeds when its residuals are consistent with them, and reports the error bar they leave on ρ.
+        None: the eigenvalues are taken as exact (to :attr:`~shspec.inverse.FitOptions.success_tol`).
     """
 
     name: str
@@ -100,6 +107,7 @@ class Target:
     sphere: object = field(default=None, repr=False)
     factors: np.ndarray | None = field(default=None, repr=False)
     source: str = "harmonic"
+    errors: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self):
         if not isinstance(self.name, str):
@@ -113,6 +121,29 @@ class Target:
         if abs(lam[0]) > 1e-8 * lam[-1] or np.any(lam[1:] <= 0) or np.any(np.diff(lam) < -1e-12 * lam[-1]):
             raise InvalidArgumentError("a target spectrum must start with λ₀ = 0 and ascend through positive values")
         object.__setattr__(self, "eigenvalues", lam)
+        if self.errors is not None:
+            err = real_array(self.errors, "a target's errors")
+            if err.shape != lam.shape:
+                raise InvalidArgumentError(f"a target's errors must have the shape of its eigenvalues {lam.shape}, got "
+                                           f"{err.shape}")
+            bad = np.flatnonzero(~(np.isfinite(err[1:]) & (err[1:] > 0)))
+            if bad.size:
+                raise InvalidArgumentError(f"the error of eigenvalue {bad[0] + 1} is {err[bad[0] + 1]}; every error "
+                                           "after lambda_0 must be finite and > 0")
+            err = err.copy()
+            err[0] = 0.0
+            object.__setattr__(self, "errors", err)
+
+    def first(self, k: int) -> "Target":
+        """The target cut to its first ``k`` eigenvalues (and their errors)."""
+        k = check_int(k, "k", minimum=2, maximum=self.numeig)
+        return dataclasses.replace(self, eigenvalues=self.eigenvalues[:k],
+                                   errors=None if self.errors is None else self.errors[:k])
+
+    def with_noise(self, relative: float) -> "Target":
+        """The target with the error σ_i = ``relative``·λ_i of every eigenvalue (``shspec fit --noise``)."""
+        relative = check_float(relative, "the relative noise", positive=True)
+        return dataclasses.replace(self, errors=relative * self.eigenvalues)
 
     @property
     def numeig(self) -> int:
@@ -198,12 +229,42 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
 
 
 def spectrum_target(path, numeig: int | None = None) -> Target:
-    """A target read from a spectrum file (:func:`shspec.spectrum_file.read_spectrum`: every format of that module),
-    its first ``numeig`` eigenvalues (λ₀ = 0 included; default and cap: all of them); area and truth unknown."""
-    lam = read_spectrum(path)
-    if numeig is not None:
-        lam = lam[:check_int(numeig, "numeig", minimum=2)]
-    return Target(Path(path).stem, lam, source="file")
+    """A target read from a spectrum file (:func:`shspec.spectrum_file.read_spectrum_file`: every format of that
+    module), its first ``numeig`` eigenvalues (λ₀ = 0 included; default and cap: all of them), with their errors when
+    the file has an error column; area and truth unknown."""
+    data = read_spectrum_file(path)
+    target = Target(Path(path).stem, data.eigenvalues, source="file", errors=data.errors)
+    if numeig is None:
+        return target
+    return target.first(min(check_int(numeig, "numeig", minimum=2), target.numeig))
+
+
+def check_target_text(text: str) -> None:
+    """Refuse a target text that :func:`parse_target` cannot read, before any long work: an unknown scheme, a
+    malformed star, a missing mesh or spectrum file.
+
+    Raises
+    ------
+    InvalidArgumentError
+        With what was expected.
+    """
+    if not isinstance(text, str):
+        raise InvalidArgumentError(f"a target is a string, got {text!r}")
+    scheme, _, arg = text.partition(":")
+    if scheme == "blob" and not arg:
+        return
+    if scheme == "star" and len(arg.split(",")) == 3:
+        return
+    if scheme == "mesh" and arg:
+        path = resolve_mesh_path(arg)
+        if not path.is_file():
+            raise InvalidArgumentError(f"mesh target {arg!r}: no such file, nor a mesh shipped with shspec")
+        return
+    if scheme == "spectrum" and arg:
+        if not Path(arg).is_file():
+            raise InvalidArgumentError(f"spectrum target {arg!r}: no such file")
+        return
+    raise InvalidArgumentError(f"unknown target {text!r}: use blob, star:l,m,p, mesh:PATH or spectrum:FILE")
 
 
 def parse_target(text: str, *, lmax: int, numeig: int, lmax_factor: int, source: str = "pl",

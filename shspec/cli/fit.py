@@ -25,10 +25,10 @@ from ..inverse.planning import plan_numeig
 from ..inverse.checkpoint import claim_checkpoint
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions
-from ..inverse.output import write_result
+from ..inverse.output import success_definition, write_result
 from ..inverse.schedule import (DEFAULT_STAGE_MAX_ITER, default_hop_degree, degree_ramp, numeig_ramp,
                                parse_schedule)
-from ..targets import TARGET_SOURCES, Target, parse_target, read_spectrum
+from ..targets import TARGET_SOURCES, Target, check_target_text, parse_target, read_spectrum
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.mesh_files import load_mesh
 from ..mesh.progress import mesh_progress
@@ -127,22 +127,22 @@ def register(subparsers) -> None:
         description="Fit rho to a target spectrum from several random starts and write result.h5, summary.json "
         "and figures to DIR. The common case needs only --target and --out; the user guide explains the search.")
     p.add_argument("--target", required=True,
-                   help="blob | star:l,m,p | mesh:PATH or a shipped mesh (mesh:spot_600) | spectrum:FILE (text, "
-                   "CSV, .npy, .json; see the user guide)")
+                   help="blob | star:l,m,p | mesh:PATH or a shipped mesh (mesh:spot_600) | spectrum:FILE")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
     p.add_argument("--model", choices=tuple(MODELS), default="harmonic", metavar="MODEL",
-                   help="harmonic: rho's coefficients; log: log rho's (rho > 0 always); mesh: per-vertex factors")
+                   help="harmonic: rho's coefficients; log: log rho's; mesh: per-vertex factors")
     p.add_argument("--lmax-factor", type=whole_number(1, "the degree La of rho; at 0 rho is constant, a round sphere"),
                    default=15, metavar="La", help="degree La of rho (harmonic model)")
-    p.add_argument("--lmax", type=int, default=None, metavar="Lb", help="basis degree Lb (default: planned for the target)")
+    p.add_argument("--lmax", type=int, default=None, metavar="Lb", help="basis degree Lb (default: planned; 30 with --numeig)")
     p.add_argument("--numeig", type=_numeig, default=None, metavar="K",
-                   help="eigenvalues matched, lambda_0 included: an integer, 'auto' or 'all' (mesh targets) "
-                   "(default: planned for harmonic fits, 256 for mesh fits)")
+                   help="eigenvalues matched, with lambda_0: a number, or 'auto'/'all' for meshes (default: planned)")
     p.add_argument("--reg", type=float, default=d.reg, metavar="R", help="regularization weight R (dimensionless)")
     p.add_argument("--starts", type=int, default=d.starts, metavar="N", help="random starts")
     p.add_argument("--seed", type=int, default=d.seed, metavar="S", help="random seed")
     p.add_argument("--truth", type=Path, default=None, metavar="FILE",
-                   help="the true rho (coefficients: .npy, text, summary.json, result.h5): report the aligned error")
+                   help="the true rho's coefficients: report the error")
+    p.add_argument("--noise", type=float, default=None, metavar="REL",
+                   help="relative error of each eigenvalue (default: a file's error column, else exact)")
 
     runs = p.add_argument_group("runs")
     runs.add_argument("--workers", type=int, default=None, metavar="N", help="run the starts on N local processes")
@@ -251,8 +251,7 @@ def _auto_numeig(args, target: Target) -> tuple[Target, dict]:
     print(f"--numeig auto: {k} of the first {target.numeig} eigenvalues of {where} ({n} vertices) have an estimated "
           f"discretization error <= {args.numeig_tol:g} (largest kept {report['largest_kept_error']:.2g}"
           + (f", next {err[k]:.2g})" if k < err.size else ")"), file=sys.stderr)
-    cut = Target(target.name, target.eigenvalues[:k], area=target.area, truth=target.truth, mesh=target.mesh,
-                 sphere=target.sphere, factors=target.factors, source=target.source)
+    cut = target.first(k)
     return cut, report
 
 
@@ -296,6 +295,7 @@ def _fit(args) -> int:
     auto = args.numeig == "auto"
     if args.numeig in ("auto", "all") and args.target.partition(":")[0] not in ("star", "mesh"):
         raise InvalidArgumentError(f"--numeig {args.numeig} needs a mesh target (star:... or mesh:...)")
+    check_target_text(args.target)  # a typo is named now, not after a minute of planning
     extra = {}
     planned = _plan(args)
     if planned is not None:
@@ -310,6 +310,8 @@ def _fit(args) -> int:
                               source=args.source, subdivisions=args.subdivisions)
     if args.truth is not None:
         target = dataclasses.replace(target, truth=read_truth(args.truth))
+    if args.noise is not None:
+        target = target.with_noise(args.noise)
     if planned is not None and target.numeig < planned["numeig"]:
         print(f"warning: the target has only {target.numeig} eigenvalues; the plan asked for {planned['numeig']}",
               file=sys.stderr)
@@ -358,7 +360,7 @@ def _fit(args) -> int:
     print(("warning: " if ident.underdetermined else "") + ident.statement(), file=sys.stderr)
     best = result.best
     print(f"best start {best.index}: energy {best.energy:.3e}, max relative residual {best.relative_residual:.3e}; "
-          f"{result.success_count}/{len(result.starts)} starts succeeded (residual <= {options.success_tol:g}); "
+          f"{result.success_count}/{len(result.starts)} starts succeeded ({success_definition(result)}); "
           f"{result.seconds:.1f} s; wrote {out}")
     aligned = json.loads((out / "summary.json").read_text()).get("alignment")
     if aligned and "relative_error" in aligned:  # the truth is known (--truth, or a target that carries it)

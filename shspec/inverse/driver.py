@@ -63,7 +63,7 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
             progress.status = "stopped: the start of the next stage is not a metric"
             progress.say(opt, f"  start {progress.index} stage {s}: {progress.status} ({exc}); keeping the state of "
                               f"stage {s - 1}")
-            return progress.result(progress.status, time.perf_counter() - t0, opt.success_tol)
+            return progress.result(progress.status, time.perf_counter() - t0, progress.succeeded(problem))
         max_iter = problem.stages[s].max_iter or opt.max_iter
 
         def record():
@@ -86,7 +86,7 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
                 checkpoint(progress)
         progress.status = optimizer.status or "max_iter"
         progress.state = None
-        if opt.orient_blocks and _raises_level(problem, s) and progress.relative_residual > opt.success_tol:
+        if opt.orient_blocks and _raises_level(problem, s) and not progress.succeeded(problem):
             orient_new_block(problem, progress, s)
         basis = "" if problem.bases[s] is None else f", basis degree {problem.bases[s]}"
         progress.say(opt, f"  start {progress.index} stage {s} ({_level_text(obj.model, problem.level(s))}"
@@ -95,18 +95,18 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
         if progress.display is not None:
             progress.display.stage_done()
         if (s < last and problem.stages[s].hops and opt.basin_hops
-                and progress.relative_residual > opt.success_tol):
+                and not progress.succeeded(problem)):
             # not checkpointed apart: a resume inside these hops runs stage s again, which repeats them exactly
             progress.status = basin_hop(problem, progress, progress.status, s)
         params = progress.params
-    if opt.basin_hops and progress.relative_residual > opt.success_tol:
+    if opt.basin_hops and not progress.succeeded(problem):
         if progress.stage <= last:
             # checkpoint the end of the stages, so that a resume repeats only the (deterministic) hops
             progress.stage, progress.base = last + 1, progress.params
             if checkpoint is not None and opt.checkpoint_every:
                 checkpoint(progress)
         progress.status = basin_hop(problem, progress, progress.status, last)
-    return progress.result(progress.status, time.perf_counter() - t0, opt.success_tol)
+    return progress.result(progress.status, time.perf_counter() - t0, progress.succeeded(problem))
 
 
 def _raises_level(problem: FitProblem, s: int) -> bool:

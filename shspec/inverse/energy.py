@@ -21,7 +21,7 @@ from .parametrization import Parametrization
 __all__ = ["eigenvalue_weights", "relative_residual", "rms_relative_residual", "Evaluation", "Objective"]
 
 
-def eigenvalue_weights(target, kind: str = "relative") -> np.ndarray:
+def eigenvalue_weights(target, kind: str = "relative", errors=None) -> np.ndarray:
     """Weights w_i (k,) of the squared eigenvalue errors.
 
     Parameters
@@ -29,8 +29,11 @@ def eigenvalue_weights(target, kind: str = "relative") -> np.ndarray:
     target : (k,) array
         Target eigenvalues λ*, ascending, λ*₀ = 0.
     kind : {"relative", "absolute"}
-        "relative": w_i = 1/λ*_i² (so that E is half the sum of squared relative errors); "absolute": w_i = 1.
-        λ₀ = 0 gets weight 0 either way: it is 0 for every metric.
+        "relative": w_i = 1/λ*_i² (so that E is half the sum of squared relative errors), or w_i = 1/σ_i² when the
+        target's ``errors`` σ are given (E is then half its χ²); "absolute": w_i = 1.  λ₀ = 0 gets weight 0 either
+        way: it is 0 for every metric.
+    errors : (k,) array, optional
+        The target's absolute one-sigma errors (:attr:`~shspec.targets.Target.errors`; entry 0 ignored).
 
     Returns
     -------
@@ -44,6 +47,11 @@ def eigenvalue_weights(target, kind: str = "relative") -> np.ndarray:
     w = np.zeros(lam.size)
     if kind == "absolute":
         w[1:] = 1.0
+    elif errors is not None:
+        err = np.asarray(errors, dtype=float)
+        if err.shape != lam.shape or not np.all(err[1:] > 0):
+            raise InvalidArgumentError(f"errors must be positive and of the target's shape {lam.shape}")
+        w[1:] = 1.0 / err[1:] ** 2
     else:
         if np.any(lam[1:] <= 0):
             raise InvalidArgumentError("relative weights need positive target eigenvalues after λ₀")

@@ -119,7 +119,7 @@ def basin_hop(problem: FitProblem, progress: StartProgress, status: str, s: int)
         progress.say(opt, f"  start {progress.index} {where}basin hop {hop + 1}: "
                      + (f"a move was accepted, {status}, max rel. residual {progress.relative_residual:.3e}"
                         if accepted else f"none of {tried} lowers the energy"))
-        if not accepted or progress.relative_residual <= opt.success_tol:
+        if not accepted or progress.succeeded(problem):
             break
     return status
 

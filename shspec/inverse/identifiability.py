@@ -65,6 +65,10 @@ class Identifiability:
         Relative error of p per unit relative eigenvalue noise (over the determined directions).
     singular_values : (min(K−1, d),) array
     underdetermined : bool
+    noise_error : float or None
+        The error bar the target's own errors leave: the expected relative error of p, √trace((JᵀWJ)⁻¹)/‖p‖ with
+        W = diag(1/σ_rel²) over the determined directions (weighted least squares, Gaussian errors); inf when
+        underdetermined; None when no errors were given.
     converged : bool or None
         For the end point of a fit: whether it reached its target (residual within the success tolerance).  The
         linearized ``estimated_error`` holds only there: at a local minimum the residual is nearly orthogonal to
@@ -82,13 +86,15 @@ class Identifiability:
     noise_gain: float
     singular_values: np.ndarray
     underdetermined: bool
+    noise_error: float | None = None
     converged: bool | None = None
 
     @property
     def error_estimate(self) -> float | None:
         """The relative error of p that the final residual leaves, where that estimate holds; None where it is
-        unknown (a fit that did not converge, or no residual)."""
-        return None if self.converged is False else self.estimated_error
+        unknown: a fit that did not converge, parameters the eigenvalues do not determine (a zero residual is then
+        reached anywhere on a set of solutions), or no residual."""
+        return None if self.converged is False or self.underdetermined else self.estimated_error
 
     def to_dict(self) -> dict:
         """JSON-ready (singular values as a list); ``estimated_error`` is None where the error is unknown."""
@@ -97,6 +103,8 @@ class Identifiability:
                "condition": None if not np.isfinite(self.condition) else float(self.condition),
                "estimated_error": self.error_estimate, "noise_gain": float(self.noise_gain),
                "underdetermined": self.underdetermined, "singular_values": self.singular_values.tolist()}
+        if self.noise_error is not None:
+            out["error_bar"] = self.noise_error if np.isfinite(self.noise_error) else None
         if self.converged is not None:
             out["converged"] = self.converged
         if self.converged is False:
@@ -115,6 +123,8 @@ class Identifiability:
         if self.converged is False:
             text += ("; the fit did not converge to its target, so the error of the fitted parameters is unknown "
                      "(a residual at a local minimum says nothing about the distance to the truth)")
+        elif self.noise_error is not None:
+            text += f"; the target's own errors leave an error bar of {self.noise_error:.2g} (expected relative error)"
         elif self.estimated_error is not None:
             text += f"; the final residual leaves an estimated relative error of {self.estimated_error:.2g}"
         return text
@@ -133,7 +143,7 @@ def _checked(model, params, numeig, rank_tol):
 
 
 def identifiability(model: SpectralModel, params, numeig: int, *, fit_area: bool = False, residuals=None,
-                    rank_tol: float = 1e-12) -> Identifiability:
+                    noise=None, rank_tol: float = 1e-12) -> Identifiability:
     """The identifiability of ``params`` (nparams,) by the first ``numeig`` eigenvalues of ``model``.
 
     Parameters
@@ -146,6 +156,8 @@ def identifiability(model: SpectralModel, params, numeig: int, *, fit_area: bool
         Whether the gauge frees the area (see :meth:`~shspec.spectral_model.SpectralModel.free_parameters`).
     residuals : (K,) array, optional
         Relative eigenvalue residuals (λ_i − λ*_i)/λ*_i of a fit (entry 0 ignored), for ``estimated_error``.
+    noise : (K,) array, optional
+        Relative one-sigma errors σ_i/λ*_i of the target's eigenvalues (entry 0 ignored), for ``noise_error``.
     rank_tol : float
         Singular values below rank_tol·s₁ count as zero.
 
@@ -156,10 +168,12 @@ def identifiability(model: SpectralModel, params, numeig: int, *, fit_area: bool
     """
     p, numeig, rank_tol, spec = _checked(model, params, numeig, rank_tol)
     if residuals is not None:
-        residuals = np.asarray(residuals, dtype=float)
-        if residuals.shape != (numeig,):
-            raise InvalidArgumentError(f"residuals must have shape ({numeig},), got {residuals.shape}")
-    return _analyse(model, p, spec, (numeig,), fit_area, rank_tol, residuals)[0]
+        residuals = finite_array(residuals, "residuals", (numeig,))
+    if noise is not None:
+        noise = finite_array(noise, "noise", (numeig,))
+        if np.any(noise[1:] <= 0):
+            raise InvalidArgumentError("noise must be > 0 for every eigenvalue after lambda_0")
+    return _analyse(model, p, spec, (numeig,), fit_area, rank_tol, residuals, noise)[0]
 
 
 def identifiability_by_numeig(model: SpectralModel, params, numeigs, *, fit_area: bool = False,
@@ -186,7 +200,7 @@ def identifiability_by_numeig(model: SpectralModel, params, numeigs, *, fit_area
     return _analyse(model, p, spec, ks, fit_area, rank_tol, None)
 
 
-def _analyse(model, p, spec, ks, fit_area, rank_tol, residuals) -> list[Identifiability]:
+def _analyse(model, p, spec, ks, fit_area, rank_tol, residuals, noise=None) -> list[Identifiability]:
     free = model.free_parameters(fit_area)
     jac_all = (model.jacobian(spec)[1:] / spec.eigenvalues[1:, None])[:, free]
     sym = model.symmetry_directions(p)[free]
@@ -206,10 +220,14 @@ def _analyse(model, p, spec, ks, fit_area, rank_tol, residuals) -> list[Identifi
         condition = float(s[0] / s[rank - 1]) if not under else float("inf")
         pinv = (vt[:rank].T / s[:rank]) @ u[:, :rank].T
         estimated = None if residuals is None else float(np.linalg.norm(pinv @ residuals[1:]) / norm)
+        noise_error = None
+        if noise is not None:
+            sw = np.linalg.svd(jac_all[:numeig - 1] @ basis / noise[1:numeig, None], compute_uv=False)
+            noise_error = float("inf") if under else float(np.sqrt(np.sum(1.0 / sw[:d] ** 2)) / norm)
         out.append(Identifiability(numeig=numeig, free=int(free.size), symmetries=nsym, directions=d, rank=rank,
                                    condition=condition, estimated_error=estimated,
                                    noise_gain=float(np.linalg.norm(pinv) / norm), singular_values=s,
-                                   underdetermined=under))
+                                   underdetermined=under, noise_error=noise_error))
     return out
 
 

@@ -184,7 +184,7 @@ def _run_starts(problem: FitProblem, executor, finished: list, current, done: se
                     save_checkpoint(options.checkpoint_path, fp, finished, current, target.eigenvalues)
                 running = current is not None and current.index not in {r.index for r in finished}
                 if running and current.params is not None:
-                    finished.append(current.result("interrupted", current.seconds, options.success_tol))
+                    finished.append(current.result("interrupted", current.seconds, current.succeeded(problem)))
                 display.message("interrupted: the best state so far is kept")
                 break
     return interrupted

@@ -19,6 +19,7 @@ from ..errors import InvalidArgumentError, NotPositiveError
 from ..outputs import ensure_directory
 from . import plots
 from .checkpoint import options_dict, save_result
+from .problem import CHI2_SIGMAS
 from .results import FitResult
 
 __all__ = ["summary", "write_result"]
@@ -36,6 +37,14 @@ def _alignment(result: FitResult) -> dict | None:
             "mirrored": aligned.mirrored, "angles": aligned.angles.tolist()}
 
 
+def success_definition(result: FitResult) -> str:
+    """When a start of this fit succeeds, in words."""
+    if result.target.errors is None:
+        return f"max_i |lambda_i - lambda*_i| / lambda*_i <= {result.options.success_tol:g}"
+    return (f"residuals consistent with the target's errors sigma_i: chi^2 / (K - 1) <= 1 + {CHI2_SIGMAS:g} "
+            "sqrt(2 / (K - 1)), chi^2 = sum_i ((lambda_i - lambda*_i) / sigma_i)^2")
+
+
 def summary(result: FitResult) -> dict:
     """The JSON-ready summary of a fit (module notes)."""
     if not isinstance(result, FitResult):
@@ -46,7 +55,7 @@ def summary(result: FitResult) -> dict:
         "numeig": target.numeig, "options": options_dict(opt),
         "optimizer": opt.optimizer or result.model.default_optimizer,
         "energy": best.energy, "relative_residual": best.relative_residual,
-        "success_definition": f"a start succeeds when max_i |lambda_i - lambda*_i| / lambda*_i <= {opt.success_tol:g}",
+        "success_definition": success_definition(result),
         "successes": result.success_count, "time_s": result.seconds, "interrupted": result.interrupted,
         "solutions": [{"start": result.starts[i].index, "energy": result.starts[i].energy} for i in result.solutions],
         "starts": [{"index": r.index, "energy": r.energy, "relative_residual": r.relative_residual,

@@ -25,7 +25,19 @@ from .parametrization import Parametrization
 from .results import StartResult
 from .schedule import Stage, default_schedule
 
-__all__ = ["FitProblem", "StartProgress"]
+__all__ = ["FitProblem", "StartProgress", "consistent_with_errors", "CHI2_SIGMAS"]
+
+#: A fit is consistent with a target's errors when χ²/ν ≤ 1 + CHI2_SIGMAS·√(2/ν), ν = K − 1 eigenvalues: the mean
+#: of χ²/ν is 1 and its standard deviation √(2/ν) for Gaussian errors.
+CHI2_SIGMAS = 3.0
+
+
+def consistent_with_errors(eigenvalues, target, errors) -> bool:
+    """Whether eigenvalues (k,) match ``target`` (k,) within its one-sigma ``errors`` (k,) in the χ² sense
+    (:data:`CHI2_SIGMAS`; λ₀ excluded)."""
+    r = (np.asarray(eigenvalues)[1:] - np.asarray(target)[1:]) / np.asarray(errors)[1:]
+    nu = r.size
+    return bool(np.mean(r * r) <= 1.0 + CHI2_SIGMAS * np.sqrt(2.0 / nu))
 
 #: Size of the perturbation given to the parameters a stage adds, relative to the one of a random start: enough to
 #: leave the parity saddle, small enough not to undo what the earlier stages found.
@@ -120,7 +132,16 @@ class FitProblem:
         sub = self.model.restrict(self.level(s), self.bases[s])
         par = Parametrization.at(self.model.to_level(params, self.level(s)), sub.free_parameters(self.fit_area),
                                  sub.transform)
-        return Objective(sub, lam, eigenvalue_weights(lam, self.options.weights), par, self.options.reg)
+        errors = None if self.target.errors is None else self.target.errors[:k]
+        return Objective(sub, lam, eigenvalue_weights(lam, self.options.weights, errors), par, self.options.reg)
+
+    def succeeded(self, eigenvalues, relative_residual: float) -> bool:
+        """Whether matched eigenvalues (k,) fit the target: to ``success_tol`` (relative) for an exact target; for a
+        target with errors, residuals consistent with them (:func:`consistent_with_errors`)."""
+        if self.target.errors is None:
+            return bool(relative_residual <= self.options.success_tol)
+        k = np.size(eigenvalues)
+        return consistent_with_errors(eigenvalues, self.target.eigenvalues[:k], self.target.errors[:k])
 
     def merge(self, s: int, params: np.ndarray, objective: Objective, x) -> np.ndarray:
         """Full parameters after stage s: the stage's parameters written back into ``params``."""
@@ -166,11 +187,16 @@ class StartProgress:
         elif options.progress:
             print(text, file=sys.stderr, flush=True)
 
-    def result(self, status: str, seconds: float, success_tol: float) -> StartResult:
-        """The start's outcome so far (its best state: the optimizers only accept descent)."""
+    def result(self, status: str, seconds: float, success: bool) -> StartResult:
+        """The start's outcome so far (its best state: the optimizers only accept descent); ``success`` from
+        :meth:`FitProblem.succeeded`."""
         return StartResult(index=self.index, params=self.params.copy(), energy=float(self.energy),
                            relative_residual=float(self.relative_residual),
                            iterations=max(len(self.history) - 1, 0), seconds=seconds, status=status,
                            history=np.array(self.history, dtype=float).reshape(-1, 3),
-                           eigenvalues=np.array(self.eigenvalues), success=bool(self.relative_residual <= success_tol))
+                           eigenvalues=np.array(self.eigenvalues), success=bool(success))
+
+    def succeeded(self, problem: FitProblem) -> bool:
+        """Whether the start's state so far fits the target (:meth:`FitProblem.succeeded`)."""
+        return self.eigenvalues is not None and problem.succeeded(self.eigenvalues, self.relative_residual)
 

@@ -115,8 +115,9 @@ class FitResult:
             rel = np.zeros(k)
             rel[1:] = (best.eigenvalues[1:] - ref[1:]) / ref[1:]
             # frozen: the memo goes straight into the instance dict (it is derived, not state)
+            errors = self.target.errors
             ident = identifiability(self.model, best.params, k, fit_area=fits_area(self.options, self.target),
-                                    residuals=rel)
+                                    residuals=rel, noise=None if errors is None else np.r_[1.0, errors[1:k] / ref[1:]])
             object.__setattr__(self, "_identifiability", dataclasses.replace(ident, converged=bool(best.success)))
         return self.__dict__["_identifiability"]
 

@@ -142,10 +142,7 @@ def adaptive_fit(target: Target, options: AdaptiveOptions | None = None, *, log=
         k = min(target.numeig, sphere.nvertices - 1)
         if i < len(sizes) - 1:
             k = min(k, max(2, int(opt.numeig_fraction * sphere.nvertices)))
-        stage_target = target if k == target.numeig else Target(target.name, target.eigenvalues[:k], area=target.area,
-                                                                truth=target.truth, mesh=target.mesh,
-                                                                sphere=target.sphere, factors=target.factors,
-                                                                source=target.source)
+        stage_target = target.first(k)
         t0 = time.perf_counter()
         result = fit(stage_target, model, opt.fit, init=init)
         best = result.best

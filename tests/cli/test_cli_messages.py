@@ -116,3 +116,16 @@ def test_a_nan_starting_point_is_named_as_nan_not_as_a_shape():
     with pytest.raises(InvalidArgumentError, match=r"entry 3 is nan") as info:
         fit(harmonic_target(blob_factor(), lmax=6, numeig=9), model, FitOptions(starts=1), init=init)
     assert "shape" not in str(info.value)
+
+
+def test_a_mistyped_target_is_named_before_any_planning(tmp_path, capsys, monkeypatch):
+    import shspec.cli.fit as cli_fit
+
+    def no_planning(*args, **kwargs):  # planning K for La = 15 takes a minute: a typo must not wait for it
+        raise AssertionError("planned before the target was checked")
+
+    monkeypatch.setattr(cli_fit, "plan_numeig", no_planning)
+    for target, words in (("blobb", "unknown target 'blobb'"), ("mesh:nonexistent_mesh", "no such file"),
+                          ("spectrum:" + str(tmp_path / "none.txt"), "no such file")):
+        assert main(["fit", "--target", target, "--out", str(tmp_path / "out")]) == 1
+        assert words in capsys.readouterr().err

@@ -789,3 +789,13 @@ def test_a_stage_whose_start_is_not_a_metric_ends_the_start_not_the_fit(small, m
     write_result(result, tmp_path / "out")
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["starts"][0]["status"].startswith("stopped") and summary["identifiability"]["converged"] is False
+
+
+def test_an_underdetermined_fit_gives_no_error_estimate(small):
+    """20 eigenvalues cannot determine the blob's degree 6 (42 directions): a zero residual is reached anywhere on a
+    set of solutions, so no linearized error may be printed, even at a converged start (the README's example)."""
+    target, model = small
+    result = fit(target, model, FitOptions(starts=1, max_iter=8, seed=0))
+    ident = result.identifiability()
+    assert ident.underdetermined and ident.estimated_error is not None and ident.error_estimate is None
+    assert result.identifiability().to_dict()["estimated_error"] is None
