@@ -29,19 +29,19 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..checks import finite_array
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
-from ..spectral_model import SpectralModel, Spectrum, regularization_weight
+from ..spectral_model import SpectralModel, Spectrum
 from ..sphere.factor import ConformalFactor
 from ..sphere.grid import GLQGrid, evaluate_on_grid, expand_grid, glq_grid
 from ..sphere.harmonics import check_degree, degrees, ncoeffs
 from ..sphere.random import random_coefficients
 from ..sphere.rotate import power_spectrum
 from .gridforms import GridQuadraticForms
-from .model import HarmonicModel, SpectrumResult, block_moves, rotation_generators, smallest_agreeing_basis
+from .model import (HarmonicModel, SpectrumResult, block_moves, laplacian_regularizer, rotation_generators,
+                    smallest_agreeing_basis)
 
 __all__ = ["LogHarmonicModel", "LogSpectrumResult"]
 
@@ -206,11 +206,7 @@ class LogHarmonicModel(SpectralModel):
 
     def regularizer(self, reg: float):
         """D = √(2R) diag(l(l+1)), so that ½‖Du‖² = R‖Δ log ρ‖²."""
-        reg = regularization_weight(reg)
-        if reg == 0:
-            return None
-        l = degrees(self.lmax_factor).astype(float)
-        return sp.diags(np.sqrt(2 * reg) * l * (l + 1)).tocsr()
+        return laplacian_regularizer(reg, self.lmax_factor)
 
     def levels(self) -> tuple[int, ...]:
         """The degrees 2 … La of u (degree 1 is the gauge)."""

@@ -289,11 +289,7 @@ class HarmonicModel(SpectralModel):
 
     def regularizer(self, reg: float):
         """D = √(2R) diag(l(l+1)), so that ½‖Da‖² = R‖Δρ‖² = R Σ (l(l+1))² a_lm²."""
-        reg = regularization_weight(reg)
-        if reg == 0:
-            return None
-        l = degrees(self.lmax_factor).astype(float)
-        return sp.diags(np.sqrt(2 * reg) * l * (l + 1)).tocsr()
+        return laplacian_regularizer(reg, self.lmax_factor)
 
     def levels(self) -> tuple[int, ...]:
         """The factor degrees 2 … La (degree 1 is the gauge)."""
@@ -392,6 +388,16 @@ def _octahedral_euler() -> list:
 
 
 _OCTAHEDRAL_EULER = _octahedral_euler()
+
+
+def laplacian_regularizer(reg, lmax_factor: int):
+    """D = √(2R) diag(l(l+1)) over the coefficients of degree ≤ ``lmax_factor`` (sparse), so that ½‖Dc‖² = R‖Δf‖²
+    for the function f of coefficients c; None for R = 0."""
+    reg = regularization_weight(reg)
+    if reg == 0:
+        return None
+    l = degrees(lmax_factor).astype(float)
+    return sp.diags(np.sqrt(2 * reg) * l * (l + 1)).tocsr()
 
 
 def smallest_agreeing_basis(model, level: int | None, numeig: int, tol: float, probe) -> int | None:
