@@ -52,7 +52,8 @@ def register(subparsers) -> None:
     q.add_argument("path", type=Path, help="mesh file (.obj, .ply, .off, .stl)")
     q.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
     q.add_argument("--tol", type=float, default=CMCFOptions.tol,
-                   help=f"roundness tolerance (default {CMCFOptions.tol:g})")
+                   help=f"roundness tolerance; the flow also stops where the roundness stalls above it "
+                   f"(default {CMCFOptions.tol:g})")
     q.add_argument("--max-iter", type=int, default=CMCFOptions.max_iter,
                    help=f"most flow steps (default {CMCFOptions.max_iter})")
     q.add_argument("--no-center", action="store_true", help="skip Möbius centering")
@@ -113,7 +114,7 @@ def _cmcf(args) -> int:
         "iterations": result.iterations, "time": result.seconds, "flips": result.flips,
         "distortion_mean": result.distortion_mean, "distortion_max": result.distortion_max,
         "centering_residual": None if np.isnan(result.centering_residual) else result.centering_residual,
-        "success": result.success,
+        "success": result.success, "stop_reason": result.stop_reason,
     }
     write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     fig = plot_hammer(result.sphere, result.factors, log=True, title=f"{args.path.name}: conformal factors",

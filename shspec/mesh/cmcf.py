@@ -116,6 +116,9 @@ class CMCFResult:
         Roundness ≤ tol, or stagnation reached, within max_iter, and no flipped faces.
     seconds : float
         Wall time.
+    stop_reason : str
+        Why the flow stopped: "tolerance" (roundness ≤ tol), "stalled" (the roundness stopped improving above tol:
+        the rounder sphere this mesh allows, see ``stall_iterations``) or "max_iter".
     """
 
     sphere: TriangleMesh
@@ -129,6 +132,7 @@ class CMCFResult:
     centering_residual: float
     success: bool
     seconds: float
+    stop_reason: str = ""
 
 
 def roundness(vertices, weights) -> float:
@@ -265,7 +269,8 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
         if history[-1] <= opt.tol or _stalled(history, opt):
             break
     round_final, x = best
-    converged = round_final <= opt.tol or _stalled(history, opt)
+    stop_reason = "tolerance" if round_final <= opt.tol else "stalled" if _stalled(history, opt) else "max_iter"
+    converged = stop_reason != "max_iter"
     sphere = mesh.with_vertices(x / np.linalg.norm(x, axis=1)[:, None])
     residual = float("nan")
     if opt.center:
@@ -278,7 +283,8 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
     return CMCFResult(sphere=sphere, factors=factors, roundness=round_final, history=np.array(history),
                       iterations=len(history), flips=flips, distortion_mean=float(fa @ qc / fa.sum()),
                       distortion_max=float(qc.max()), centering_residual=residual,
-                      success=bool(converged and flips == 0), seconds=time.perf_counter() - start)
+                      success=bool(converged and flips == 0), seconds=time.perf_counter() - start,
+                      stop_reason=stop_reason)
 
 
 def _normalize(x, areas):
