@@ -16,9 +16,10 @@ import importlib
 import signal
 import sys
 import threading
+import warnings
 
 from .. import __version__
-from ..errors import ShspecError
+from ..errors import ShspecError, ShspecWarning
 
 _COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment", "shspec.cli.fit", "shspec.cli.embed",
                     "shspec.cli.identifiability", "shspec.cli.precompute", "shspec.cli.topology"]
@@ -54,6 +55,24 @@ def _sigterm_as_interrupt():
         signal.signal(signal.SIGTERM, previous)
 
 
+@contextlib.contextmanager
+def _warnings_as_lines(command: str):
+    """shspec's own warnings as one line each on stderr, as a command's errors are (not Python's file:line form)."""
+    default = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, ShspecWarning):
+            print(f"shspec {command}: warning: {message}", file=sys.stderr if file is None else file)
+        else:
+            default(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = default
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -61,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        with _sigterm_as_interrupt():
+        with _sigterm_as_interrupt(), _warnings_as_lines(args.command):
             return int(args.func(args) or 0)
     except ShspecError as exc:
         print(f"shspec {args.command}: error: {exc}", file=sys.stderr)

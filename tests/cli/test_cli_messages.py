@@ -129,3 +129,17 @@ def test_a_mistyped_target_is_named_before_any_planning(tmp_path, capsys, monkey
                           ("spectrum:" + str(tmp_path / "none.txt"), "no such file")):
         assert main(["fit", "--target", target, "--out", str(tmp_path / "out")]) == 1
         assert words in capsys.readouterr().err
+
+
+def test_shspec_warnings_are_one_line_each(tmp_path, capsys):
+    import h5py
+
+    from shspec.gaunt.cache import get_table, table_path
+
+    get_table(6, 4, cache_dir=tmp_path)
+    with h5py.File(table_path(6, 4, tmp_path), "r+") as f:
+        f.attrs["format_version"] = 1  # an outdated table: rebuilt with a ShspecWarning
+    assert main(["forward", "--lmax", "6", "--lmax-factor", "4", "--numeig", "9", "--cache-dir", str(tmp_path)]) == 0
+    err = capsys.readouterr().err
+    assert "shspec forward: warning: rebuilding the Gaunt table" in err
+    assert "ShspecWarning" not in err and ".py:" not in err  # not Python's file:line form
