@@ -27,7 +27,7 @@ def _help(*command):
 
 
 @pytest.mark.parametrize("command, expected", [
-    ("cmcf", [f"roundness tolerance (default {CMCFOptions.tol:g})", f"(default {CMCFOptions.max_iter})"]),
+    ("cmcf", [f"stalls above it (default {CMCFOptions.tol:g})", f"(default {CMCFOptions.max_iter})"]),
     ("embed", [f"(default {EmbedOptions.pressure:g})", f"filter (default {EmbedOptions.smoothing:g})"]),
     ("report", ["(default report.html)"]),
     ("precompute", ["(default build)", "(default 2000)"]),
