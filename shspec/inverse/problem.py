@@ -39,6 +39,7 @@ def consistent_with_errors(eigenvalues, target, errors) -> bool:
     nu = r.size
     return bool(np.mean(r * r) <= 1.0 + CHI2_SIGMAS * np.sqrt(2.0 / nu))
 
+
 #: Size of the perturbation given to the parameters a stage adds, relative to the one of a random start: enough to
 #: leave the parity saddle, small enough not to undo what the earlier stages found.
 _NEW_DEGREE_SCALE = 0.05
