@@ -28,7 +28,8 @@ from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions
 from ..inverse.output import success_definition, write_result
 from ..inverse.schedule import (DEFAULT_STAGE_MAX_ITER, default_hop_degree, degree_ramp, numeig_ramp,
                                parse_schedule)
-from ..targets import TARGET_SOURCES, Target, check_target_text, parse_target, read_spectrum
+from ..targets import (TARGET_SOURCES, Target, check_target_text, parse_target, read_spectrum,
+                       with_discretization_errors)
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.mesh_files import load_mesh
 from ..mesh.progress import mesh_progress
@@ -312,6 +313,15 @@ def _fit(args) -> int:
         target = dataclasses.replace(target, truth=read_truth(args.truth))
     if args.noise is not None:
         target = target.with_noise(args.noise)
+    elif target.source in ("pl", "cmcf") and args.model != "mesh":
+        # a harmonic model hears the mesh's own discretization error too: fit to it, not below it
+        with mesh_progress(not args.quiet):
+            target = with_discretization_errors(target)
+        if not args.quiet:
+            rel = target.errors[1:] / target.eigenvalues[1:]
+            print(f"the mesh's eigenvalues carry an estimated discretization error of {rel.min():.1g} to "
+                  f"{rel.max():.1g} (relative, against one subdivision): the fit weighs and stops by it",
+                  file=sys.stderr)
     if planned is not None and target.numeig < planned["numeig"]:
         print(f"warning: the target has only {target.numeig} eigenvalues; the plan asked for {planned['numeig']}",
               file=sys.stderr)

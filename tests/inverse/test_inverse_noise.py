@@ -75,3 +75,25 @@ def test_cli_takes_the_error_column_of_a_spectrum_file_or_noise(noisy, tmp_path)
         summary = json.loads((tmp_path / out / "summary.json").read_text())
         assert "chi^2" in summary["success_definition"] and summary["successes"] == 1
         assert 0 < summary["identifiability"]["error_bar"] < 1e-2
+
+
+@pytest.mark.slow
+def test_a_harmonic_fit_of_a_mesh_spectrum_fits_to_the_mesh_discretization_error(tmp_path, capsys):
+    from shspec.mesh.refine import eigenvalue_errors
+    from shspec.mesh.shapes import star_surface
+    from shspec.targets import RICHARDSON_FACTOR, mesh_target, with_discretization_errors
+
+    target = with_discretization_errors(mesh_target(star_surface(3, 3, 0.3, 2), 10, 25, 4))
+    _, rel = eigenvalue_errors(target.mesh, 25)
+    np.testing.assert_allclose(target.errors[1:], RICHARDSON_FACTOR * rel[1:] * target.eigenvalues[1:], rtol=1e-12)
+    common = ["--target", "star:3,3,0.3", "--subdivisions", "2", "--lmax", "10", "--lmax-factor", "4",
+              "--numeig", "25", "--starts", "1", "--max-iter", "10", "--basin-hops", "0"]
+    assert main(["fit", *common, "--out", str(tmp_path / "harmonic")]) == 0
+    assert "estimated discretization error" in capsys.readouterr().err
+    summary = json.loads((tmp_path / "harmonic" / "summary.json").read_text())
+    assert "chi^2" in summary["success_definition"]
+    assert main(["fit", *common, "--model", "mesh", "--quiet", "--out", str(tmp_path / "mesh")]) == 0
+    summary = json.loads((tmp_path / "mesh" / "summary.json").read_text())
+    assert "chi^2" not in summary["success_definition"]  # the mesh model shares the mesh's discretization
+    with pytest.raises(InvalidArgumentError, match="not a mesh's cotan spectrum"):
+        with_discretization_errors(Target("t", target.eigenvalues))
