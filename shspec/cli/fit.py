@@ -21,6 +21,7 @@ from ._common import whole_number
 from ..errors import InvalidArgumentError, OutputError
 from ..galerkin import HarmonicModel, LogHarmonicModel
 from .help_format import HelpFormatter
+from ..inverse.identifiability import identifiability
 from ..inverse.planning import plan_numeig
 from ..inverse.checkpoint import claim_checkpoint
 from ..inverse.multistart import fit
@@ -288,6 +289,18 @@ def _plan(args) -> dict | None:
                                                          if k not in ("numeig", "lmax")}}
 
 
+def _expected_error(args, model, target: Target) -> float:
+    """Before fitting: the relative error of rho that the target's errors leave at a random start of the fit's law
+    (:func:`~shspec.inverse.identifiability.identifiability` with them as noise), said and returned."""
+    ref = model.random_start(np.random.default_rng([args.seed, 0]), args.amplitude, target.area_estimate())
+    noise = np.r_[1.0, target.errors[1:] / target.eigenvalues[1:]]
+    value = identifiability(model, ref, target.numeig, noise=noise).noise_error
+    if not args.quiet:
+        print(f"before fitting: the target's errors allow rho to about {value:.2g} (expected relative L2 error at a "
+              "random start of the fit's law; more eigenvalues or smaller errors lower it)", file=sys.stderr)
+    return value
+
+
 def _fit(args) -> int:
     out: Path = args.out
     if out.exists() and not out.is_dir():
@@ -333,6 +346,8 @@ def _fit(args) -> int:
         # the whole file, not only the K fitted: the heat trace needs many eigenvalues to be confident
         check_genus_zero(read_spectrum(where) if scheme == "spectrum" else target.eigenvalues, area=target.area)
     model = MODELS[args.model](args, target)
+    if target.errors is not None and args.model != "mesh":
+        extra["expected_error"] = _expected_error(args, model, target)
     if not args.log_factors and args.adaptive:
         raise InvalidArgumentError("--adaptive fits log factors (refinement follows log c); drop --no-log-factors")
     options = FitOptions(optimizer=args.optimizer, weights=args.weights, reg=args.reg, area=args.area,

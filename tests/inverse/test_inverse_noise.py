@@ -75,6 +75,9 @@ def test_cli_takes_the_error_column_of_a_spectrum_file_or_noise(noisy, tmp_path)
         summary = json.loads((tmp_path / out / "summary.json").read_text())
         assert "chi^2" in summary["success_definition"] and summary["successes"] == 1
         assert 0 < summary["identifiability"]["error_bar"] < 1e-2
+        # said before the fit, at a random start: the same order as the bar at the solution
+        assert summary["identifiability"]["error_bar"] / 10 < summary["expected_error"] < 10 * summary[
+            "identifiability"]["error_bar"]
 
 
 @pytest.mark.slow
