@@ -234,10 +234,28 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
 RICHARDSON_FACTOR = 4.0 / 3.0
 
 
-def with_discretization_errors(target: Target) -> Target:
+def subdivision_changes(target: Target) -> np.ndarray:
+    """|λ_i − λ_i'| / λ_i (k,) of a mesh target's cotan eigenvalues against one 4-to-1 subdivision of its mesh
+    (source "pl") or of its cMCF sphere carrying the cMCF factors ("cmcf"): :func:`~shspec.mesh.refine.
+    eigenvalue_errors`.
+
+    Raises
+    ------
+    InvalidArgumentError
+        For a target without a mesh spectrum.
+    """
+    if target.source == "pl" and target.mesh is not None:
+        return eigenvalue_errors(target.mesh, target.numeig)[1]
+    if target.source == "cmcf" and target.sphere is not None:
+        return eigenvalue_errors(target.sphere, target.numeig, factors=target.factors)[1]
+    raise InvalidArgumentError(f"the target {target.name!r} (source {target.source!r}) is not a mesh's cotan "
+                               "spectrum: no discretization error to estimate")
+
+
+def with_discretization_errors(target: Target, changes=None) -> Target:
     """A mesh target (source "pl" or "cmcf") with :attr:`Target.errors`: the estimated discretization error of
-    each eigenvalue, :data:`RICHARDSON_FACTOR` times its change under one 4-to-1 subdivision
-    (:func:`~shspec.mesh.refine.eigenvalue_errors`), at least 1e-12 relative.  A harmonic model fitted to a mesh's
+    each eigenvalue, :data:`RICHARDSON_FACTOR` times its change under one 4-to-1 subdivision (``changes``, from
+    :func:`subdivision_changes` when not given), at least 1e-12 relative.  A harmonic model fitted to a mesh's
     spectrum then weighs, stops and reports its error bar by the mesh's own error (a mesh model shares the mesh's
     discretization and needs none).
 
@@ -246,14 +264,8 @@ def with_discretization_errors(target: Target) -> Target:
     InvalidArgumentError
         For a target without a mesh spectrum.
     """
-    if target.source == "pl" and target.mesh is not None:
-        _, err = eigenvalue_errors(target.mesh, target.numeig)
-    elif target.source == "cmcf" and target.sphere is not None:
-        _, err = eigenvalue_errors(target.sphere, target.numeig, factors=target.factors)
-    else:
-        raise InvalidArgumentError(f"the target {target.name!r} (source {target.source!r}) is not a mesh's cotan "
-                                   "spectrum: no discretization error to estimate")
-    return dataclasses.replace(target, errors=np.maximum(RICHARDSON_FACTOR * err, 1e-12) * target.eigenvalues)
+    changes = subdivision_changes(target) if changes is None else np.asarray(changes, dtype=float)
+    return dataclasses.replace(target, errors=np.maximum(RICHARDSON_FACTOR * changes, 1e-12) * target.eigenvalues)
 
 
 def spectrum_target(path, numeig: int | None = None) -> Target:

@@ -26,11 +26,11 @@ from ..inverse.planning import plan_numeig
 from ..inverse.checkpoint import claim_checkpoint
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions
-from ..inverse.output import success_definition, write_result
+from ..inverse.output import alignment_record, success_definition, write_result
 from ..inverse.schedule import (DEFAULT_STAGE_MAX_ITER, default_hop_degree, degree_ramp, numeig_ramp,
                                parse_schedule)
 from ..targets import (TARGET_SOURCES, Target, check_target_text, parse_target, read_spectrum,
-                       with_discretization_errors)
+                       subdivision_changes, with_discretization_errors)
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.mesh_files import load_mesh
 from ..mesh.progress import mesh_progress
@@ -234,17 +234,19 @@ def _optional_tol(text: str):
     return value
 
 
-def _auto_numeig(args, target: Target) -> tuple[Target, dict]:
-    """The target cut to the eigenvalues its mesh resolves to ``--numeig-tol`` (see ``--numeig``), and a report."""
+def _auto_numeig(args, target: Target, changes=None) -> tuple[Target, dict]:
+    """The target cut to the eigenvalues its mesh resolves to ``--numeig-tol`` (see ``--numeig``), and a report;
+    ``changes``: the eigenvalues' changes under one subdivision when already computed (:func:`subdivision_changes`)."""
     if target.mesh is None:
         raise InvalidArgumentError("--numeig auto needs a mesh target (star:... or mesh:...)")
     n = target.mesh.nvertices
-    if target.source == "cmcf":
-        _, err = eigenvalue_errors(target.sphere, target.numeig, factors=target.factors)
-        where = "its cMCF sphere carrying the cMCF factors"
-    else:
+    where = "its cMCF sphere carrying the cMCF factors" if target.source == "cmcf" else "the target mesh"
+    if changes is not None:
+        err = changes
+    elif target.source == "cmcf":
+        err = subdivision_changes(target)
+    else:  # a harmonic-source target too: the K its mesh resolves
         _, err = eigenvalue_errors(target.mesh, target.numeig)
-        where = "the target mesh"
     k = trusted_numeig(err, args.numeig_tol)
     report = {"chosen": k, "of": target.numeig, "tolerance": args.numeig_tol, "estimated_on": where,
               "estimate": "|lambda_i - lambda_i(4-to-1 subdivision)| / lambda_i",
@@ -324,12 +326,14 @@ def _fit(args) -> int:
                               source=args.source, subdivisions=args.subdivisions)
     if args.truth is not None:
         target = dataclasses.replace(target, truth=read_truth(args.truth))
+    changes = None
     if args.noise is not None:
         target = target.with_noise(args.noise)
     elif target.source in ("pl", "cmcf") and args.model != "mesh":
         # a harmonic model hears the mesh's own discretization error too: fit to it, not below it
         with mesh_progress(not args.quiet):
-            target = with_discretization_errors(target)
+            changes = subdivision_changes(target)
+        target = with_discretization_errors(target, changes)
         if not args.quiet:
             rel = target.errors[1:] / target.eigenvalues[1:]
             print(f"the mesh's eigenvalues carry an estimated discretization error of {rel.min():.1g} to "
@@ -340,7 +344,7 @@ def _fit(args) -> int:
               file=sys.stderr)
     if auto:
         with mesh_progress(not args.quiet):  # the 4-to-1 subdivision's eigenpairs
-            target, extra["numeig_auto"] = _auto_numeig(args, target)
+            target, extra["numeig_auto"] = _auto_numeig(args, target, changes)
     scheme, _, where = args.target.partition(":")
     if not args.allow_any_genus and scheme in ("spectrum", "mesh"):
         # the whole file, not only the K fitted: the heat trace needs many eigenvalues to be confident
@@ -387,7 +391,7 @@ def _fit(args) -> int:
     print(f"best start {best.index}: energy {best.energy:.3e}, max relative residual {best.relative_residual:.3e}; "
           f"{result.success_count}/{len(result.starts)} starts succeeded ({success_definition(result)}); "
           f"{result.seconds:.1f} s; wrote {out}")
-    aligned = json.loads((out / "summary.json").read_text()).get("alignment")
+    aligned = alignment_record(result)  # computed once, by the summary already
     if aligned and "relative_error" in aligned:  # the truth is known (--truth, or a target that carries it)
         print(f"against the truth, after Moebius centering and the best element of O(3): relative L2 error of rho "
               f"{aligned['relative_error']:.2g}, of its per-degree power {aligned['power_error']:.2g}")

@@ -22,10 +22,10 @@ from .checkpoint import options_dict, save_result
 from .problem import CHI2_SIGMAS
 from .results import FitResult
 
-__all__ = ["summary", "write_result"]
+__all__ = ["summary", "write_result", "success_definition", "alignment_record"]
 
 
-def _alignment(result: FitResult) -> dict | None:
+def alignment_record(result: FitResult) -> dict | None:
     """Errors of the best solution against the target's harmonic truth after alignment, or why there are none."""
     try:
         aligned = result.alignment()
@@ -64,7 +64,7 @@ def summary(result: FitResult) -> dict:
     }
     out["cilm"] = result.factor().to_cilm().tolist()
     out["identifiability"] = result.identifiability().to_dict()
-    alignment = _alignment(result)
+    alignment = alignment_record(result)
     if alignment is not None:
         out["alignment"] = alignment
     out.update(result.model.compare(best.params, target))

@@ -13,7 +13,6 @@ from shspec.errors import CorruptTableError
 from shspec.galerkin import spectrum
 from shspec.gaunt import build_table, list_tables, load_table, save_table, verify_table
 from shspec.gaunt.cache import _checksum
-from shspec.gaunt.wigner import factorial_table, family_range, family_upto_into
 from shspec.sphere import ConformalFactor
 
 
@@ -37,27 +36,6 @@ def test_restricted_table_is_bit_identical_to_a_direct_build(tmp_path, big):
     from_cache = spectrum(rho, 10, 30, lmax_factor=6, cache_dir=tmp_path, truncation_tol=None).eigenvalues
     from_direct = spectrum(rho, 10, 30, lmax_factor=6, table=direct, truncation_tol=None).eigenvalues
     assert np.array_equal(from_cache, from_direct)
-
-
-def test_forward_family_values_do_not_depend_on_where_the_sweep_is_asked_to_stop():
-    fh, fl, fe = factorial_table(400)
-    rng = np.random.default_rng(11)
-    partial = 0
-    for _ in range(400):
-        j2, j3 = (int(x) for x in rng.integers(1, 60, 2))
-        m2, m3 = int(rng.integers(-j2, j2 + 1)), int(rng.integers(-j3, j3 + 1))
-        jmin, jmax = family_range(j2, j3, m2, m3)
-        if jmin > jmax:
-            continue
-        full = np.zeros(jmax - jmin + 1)
-        _, nfull, _ = family_upto_into(j2, j3, m2, m3, jmax, full, fh, fl, fe)
-        for jtop in range(jmin, jmax + 1, 3):
-            out = np.zeros(jmax - jmin + 1)
-            _, n, ok = family_upto_into(j2, j3, m2, m3, jtop, out, fh, fl, fe)
-            assert n == (jtop - jmin + 1 if ok else min(nfull, jtop - jmin + 1))
-            assert np.array_equal(out[:n], full[:n])  # the same bits, whatever jtop
-            partial += not ok and n > 0
-    assert partial > 50  # the stop inside the range (upper forbidden region) is exercised
 
 
 def _damage(path, how):

@@ -328,21 +328,27 @@ def test_numpy_integers_accepted():
     assert wigner3j_family(np.int32(1), np.int64(1), 0, 0)[1] == pytest.approx([-1 / math.sqrt(3), 0.0, math.sqrt(2 / 15)])
 
 
+def _random_families(rng, count, low, high):
+    """(j2, j3, m2, m3, jmin, jmax) of ``count`` random draws of a family, degrees in [low, high) (empty families
+    skipped); lazy, so that the caller's own draws from ``rng`` interleave with these in a fixed order."""
+    for _ in range(count):
+        j2, j3 = (int(x) for x in rng.integers(low, high, 2))
+        m2, m3 = int(rng.integers(-j2, j2 + 1)), int(rng.integers(-j3, j3 + 1))
+        jmin, jmax = family_range(j2, j3, m2, m3)
+        if jmin <= jmax:
+            yield j2, j3, m2, m3, jmin, jmax
+
+
 def test_truncated_forward_family_matches_double_double():
     """family_upto_into: exact first symbol + forward recursion, up to jtop; it must refuse the unstable region."""
-    from shspec.gaunt.wigner import factorial_table, family_range, family_upto_into
+    from shspec.gaunt.wigner import factorial_table, family_upto_into
     from shspec.gaunt.wigner_dd import family_into_dd
 
     fh, fl, fe = factorial_table(400)
     rng = np.random.default_rng(7)
     accepted = refused = 0
     worst = 0.0
-    for _ in range(3000):
-        j2, j3 = (int(x) for x in rng.integers(0, 80, 2))
-        m2, m3 = int(rng.integers(-j2, j2 + 1)), int(rng.integers(-j3, j3 + 1))
-        jmin, jmax = family_range(j2, j3, m2, m3)
-        if jmin > jmax:
-            continue
+    for j2, j3, m2, m3, jmin, jmax in _random_families(rng, 3000, 0, 80):
         jtop = int(rng.integers(jmin, jmax + 1))
         out = np.zeros(jmax - jmin + 1)
         _, n, ok = family_upto_into(j2, j3, m2, m3, jtop, out, fh, fl, fe)
@@ -356,6 +362,24 @@ def test_truncated_forward_family_matches_double_double():
         worst = max(worst, np.max(np.abs(out[:n] - hi[:n])) / np.max(np.abs(hi)))
     assert worst <= 2e-14
     assert accepted > 1000 and refused > 100  # both paths exercised
+
+
+def test_forward_family_values_do_not_depend_on_where_the_sweep_is_asked_to_stop():
+    # the sweep stops where the family makes it unstable, not at jtop: so a table's values do not depend on its La
+    from shspec.gaunt.wigner import factorial_table, family_upto_into
+
+    fh, fl, fe = factorial_table(400)
+    partial = 0
+    for j2, j3, m2, m3, jmin, jmax in _random_families(np.random.default_rng(11), 400, 1, 60):
+        full = np.zeros(jmax - jmin + 1)
+        _, nfull, _ = family_upto_into(j2, j3, m2, m3, jmax, full, fh, fl, fe)
+        for jtop in range(jmin, jmax + 1, 3):
+            out = np.zeros(jmax - jmin + 1)
+            _, n, ok = family_upto_into(j2, j3, m2, m3, jtop, out, fh, fl, fe)
+            assert n == (jtop - jmin + 1 if ok else min(nfull, jtop - jmin + 1))
+            assert np.array_equal(out[:n], full[:n])  # the same bits, whatever jtop
+            partial += not ok and n > 0
+    assert partial > 50  # the stop inside the range (upper forbidden region) is exercised
 
 
 def test_negative_degrees_are_refused_like_real_gaunt():
