@@ -235,9 +235,10 @@ RICHARDSON_FACTOR = 4.0 / 3.0
 
 
 def subdivision_changes(target: Target) -> np.ndarray:
-    """|λ_i − λ_i'| / λ_i (k,) of a mesh target's cotan eigenvalues against one 4-to-1 subdivision of its mesh
-    (source "pl") or of its cMCF sphere carrying the cMCF factors ("cmcf"): :func:`~shspec.mesh.refine.
-    eigenvalue_errors`.
+    """The relative changes of a mesh target's cotan eigenvalues under one 4-to-1 subdivision, (k,).
+
+    They are |λ_i − λ_i'| / λ_i against the subdivision of its mesh (source "pl") or of its cMCF sphere carrying
+    the cMCF factors ("cmcf"), by :func:`~shspec.mesh.refine.eigenvalue_errors`.
 
     Raises
     ------
