@@ -29,6 +29,7 @@ __all__ = [
     "ShspecWarning",
     "TruncationWarning",
     "TopologyError",
+    "BeyondBasisError",
 ]
 
 
@@ -99,6 +100,11 @@ class UnsafeForkError(ShspecError, RuntimeError):
 
 class ResourceLimitError(BandLimitError):
     """A computation would need more memory or disk than the machine has (the message gives both and what fits)."""
+
+
+class BeyondBasisError(ShspecError, ValueError):
+    """The discretization asked for cannot represent the target to the accuracy asked (a harmonic basis and
+    conformal factors spanning decades): the message says what it would take."""
 
 
 class ShspecWarning(UserWarning):

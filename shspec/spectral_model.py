@@ -190,6 +190,19 @@ class SpectralModel(ABC):
         and for plots)."""
         raise InvalidArgumentError(f"{self.describe()} cannot express its parameters as a harmonic rho")
 
+    def approximation(self, points, weights, values) -> tuple[np.ndarray, float] | None:
+        """The model's best parameters for a positive ρ known by its values (n,) at points (n, 3) of the unit sphere
+        with quadrature weights (n,), and the relative weighted L2 error of ρ they leave: the model's floor for that
+        ρ, what no spectrum can improve.  None: the model cannot say (default)."""
+        return None
+
+    def error_root(self, params: np.ndarray) -> np.ndarray:
+        """R (r, nparams) with ‖R δp‖ the relative L2 error of ρ that a small change δp of the parameters makes at
+        ``params``: what :mod:`~shspec.inverse.identifiability` measures its errors in.  Default: I / ‖p‖, exact for
+        the coefficients of ρ in an orthonormal basis."""
+        p = np.asarray(params, dtype=float)
+        return np.eye(p.size) / np.linalg.norm(p)
+
     def compare(self, params: np.ndarray, target) -> dict:
         """Model-specific errors against what the target knows of its truth (JSON-ready); default: none."""
         return {}

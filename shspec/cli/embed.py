@@ -40,9 +40,12 @@ def register(subparsers) -> None:
                               "writes summary.json, report.md and PNG figures to DIR.")
     q.add_argument("--target", required=True, metavar="mesh:PATH", help="target, as mesh:PATH")
     q.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
-    q.add_argument("--numeig", type=int, default=30, help="eigenvalues compared (default 30)")
-    q.add_argument("--lmax", type=int, default=16, help="harmonic basis degree Lb (default 16)")
-    q.add_argument("--lmax-factor", type=int, default=8, help="factor degree La (default 8)")
+    q.add_argument("--numeig", type=int, default=None,
+                   help="eigenvalues compared and fitted (default: planned from the target's errors)")
+    q.add_argument("--lmax", type=int, default=None, help="harmonic basis degree Lb (default: planned)")
+    q.add_argument("--lmax-factor", type=int, default=None, help="degree La of log rho (default: planned)")
+    q.add_argument("--accuracy", type=float, default=ValidationOptions.accuracy,
+                   help="relative error of rho the plan aims for (default %(default)g)")
     q.add_argument("--no-fit", action="store_true", help="skip the inverse fit")
     q.add_argument("--up", choices=("x", "y", "z"), default="z", help="vertical axis of the renderings (default z)")
     q.add_argument("--merge-vertices", action="store_true",
@@ -87,7 +90,8 @@ def _validate(args) -> int:
     if args.out.exists() and not args.out.is_dir():
         raise OutputError(f"--out {args.out} is a file; give a directory")
     mesh = load_mesh(Path(path), merge_vertices=args.merge_vertices or None)
-    opt = ValidationOptions(numeig=args.numeig, lmax=args.lmax, lmax_factor=args.lmax_factor, fit=not args.no_fit)
+    opt = ValidationOptions(numeig=args.numeig, lmax=args.lmax, lmax_factor=args.lmax_factor, accuracy=args.accuracy,
+                            fit=not args.no_fit)
     result = validate_target(mesh, opt, name=Path(path).stem, log=print)
     report = write_report(result, args.out, up=args.up)
     s = result.summary
@@ -95,6 +99,6 @@ def _validate(args) -> int:
           f"report {report}")
     failed = {step: why for step, why in s["status"].items() if why.startswith("failed")}
     for step, why in s["status"].items():
-        if why.startswith(("failed", "skipped")) and why != "skipped: disabled":
+        if why.startswith(("failed", "skipped", "not attempted")) and why != "skipped: disabled":
             print(f"shspec validate: step {step} {why}", file=sys.stderr)
     return 1 if failed else 0

@@ -18,19 +18,20 @@ import numpy as np
 from ..atomic import write_text
 from ..checks import real_array
 from ._common import whole_number
-from ..errors import InvalidArgumentError, OutputError
+from ..errors import BeyondBasisError, InvalidArgumentError, OutputError
 from ..galerkin import HarmonicModel, LogHarmonicModel
 from .help_format import HelpFormatter
 from ..inverse.identifiability import identifiability
 from ..inverse.planning import plan_numeig
+from ..inverse.surface_plan import plan_surface_fit
 from ..inverse.checkpoint import claim_checkpoint
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions
 from ..inverse.output import alignment_record, success_definition, write_result
 from ..inverse.schedule import (DEFAULT_STAGE_MAX_ITER, default_hop_degree, degree_ramp, numeig_ramp,
                                parse_schedule)
-from ..targets import (TARGET_SOURCES, Target, check_target_text, parse_target, read_spectrum,
-                       subdivision_changes, with_discretization_errors)
+from ..targets import (TARGET_SOURCES, Target, check_target_text, parse_target, read_spectrum, refined_target,
+                       subdivision_changes, subdivision_spectrum)
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.mesh_files import load_mesh
 from ..mesh.progress import mesh_progress
@@ -131,14 +132,16 @@ def register(subparsers) -> None:
     p.add_argument("--target", required=True,
                    help="blob | star:l,m,p | mesh:PATH or a shipped mesh (mesh:spot_600) | spectrum:FILE")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (created)")
-    p.add_argument("--model", choices=tuple(MODELS), default="harmonic", metavar="MODEL",
-                   help="harmonic: rho's coefficients; log: log rho's; mesh: per-vertex factors")
+    p.add_argument("--model", choices=tuple(MODELS), default=None, metavar="MODEL",
+                   help="harmonic: rho's coefficients; log: log rho's; mesh: per-vertex factors (default: log for "
+                   "mesh targets, else harmonic)")
     p.add_argument("--lmax-factor", type=whole_number(1, "the degree La of rho; at 0 rho is constant, a round sphere"),
-                   default=15, metavar="La", help="degree La of rho (harmonic model)")
+                   default=None, metavar="La", help="degree La of rho (default: planned for mesh targets, else 15)")
     p.add_argument("--lmax", type=int, default=None, metavar="Lb", help="basis degree Lb (default: planned; 30 with --numeig)")
     p.add_argument("--numeig", type=_numeig, default=None, metavar="K",
                    help="eigenvalues matched, with lambda_0: a number, or 'auto'/'all' for meshes (default: planned)")
-    p.add_argument("--reg", type=float, default=d.reg, metavar="R", help="regularization weight R (dimensionless)")
+    p.add_argument("--reg", type=float, default=None, metavar="R",
+                   help=f"regularization weight R (default: {MESH_REG:g} for --model mesh, else {d.reg:g})")
     p.add_argument("--starts", type=int, default=d.starts, metavar="N", help="random starts")
     p.add_argument("--seed", type=int, default=d.seed, metavar="S", help="random seed")
     p.add_argument("--truth", type=Path, default=None, metavar="FILE",
@@ -276,7 +279,10 @@ def _plan(args) -> dict | None:
         args.lmax = 30 if args.lmax is None else args.lmax
         return None
     if args.model == "mesh":
-        args.numeig, args.lmax = 256, 30 if args.lmax is None else args.lmax
+        # the study's share of the eigenvalues where a dense solve is cheap; beyond, those the mesh resolves
+        n = _mesh_size(args) if _mesh_scheme(args) else 0
+        args.numeig = max(2, round(MESH_NUMEIG_FRACTION * n)) if 0 < n <= MESH_FRACTION_VERTICES else "auto"
+        args.lmax = 30 if args.lmax is None else args.lmax
         return None
     # the log model takes the plan of a harmonic rho of the same degree: the same number of unknowns
     plan = plan_numeig(args.lmax_factor, random_centred_coefficients(args.seed, args.lmax_factor, 0.2),
@@ -289,6 +295,70 @@ def _plan(args) -> dict | None:
         print(f"--numeig not given: {plan.statement()}", file=sys.stderr)
     return {"numeig": plan.numeig, "lmax": args.lmax, **{k: v for k, v in plan.to_dict().items()
                                                          if k not in ("numeig", "lmax")}}
+
+
+#: Default K of ``--model mesh``: this share of the vertices (the study's "e0.95": 570 of 600, 1140 of 1200) on
+#: meshes of at most MESH_FRACTION_VERTICES vertices, and ``--numeig auto`` on larger ones.
+MESH_NUMEIG_FRACTION = 0.95
+MESH_FRACTION_VERTICES = 1500
+
+#: Default R of ``--model mesh``: the study's regularized fit (Section 3.2.2, cotan-squared penalty).
+MESH_REG = 0.05
+
+#: Degree of the harmonic truth (the cMCF factors' expansion) a planned mesh target is compared with.
+SURFACE_TRUTH_DEGREE = 16
+
+
+def _mesh_scheme(args) -> bool:
+    return args.target.partition(":")[0] in ("star", "mesh")
+
+
+def _resolve_defaults(args) -> bool:
+    """Fill in --model and, where it is not planned, --lmax-factor; whether the mesh target's fit is planned by
+    :func:`plan_surface_fit` (a log fit of a mesh's cotan spectrum, neither La nor K given)."""
+    if args.model is None:
+        args.model = "log" if _mesh_scheme(args) else "harmonic"
+    planned = (args.model == "log" and _mesh_scheme(args) and args.source in ("pl", "cmcf")
+               and args.lmax_factor is None and args.numeig is None)
+    if args.lmax_factor is None and not planned:
+        args.lmax_factor = 15
+    if args.reg is None:
+        args.reg = MESH_REG if args.model == "mesh" else FitOptions().reg
+    return planned
+
+
+def _refined(target: Target, fine, quiet: bool) -> Target:
+    """:func:`refined_target`, said on the console."""
+    refined = refined_target(target, fine)
+    if not quiet:
+        rel = refined.errors[1:] / refined.eigenvalues[1:]
+        print(f"the mesh target's eigenvalues are those of its 4-to-1 subdivision, with an estimated discretization "
+              f"error of {rel.min():.1g} to {rel.max():.1g} (relative, Richardson): the fit weighs and stops by it",
+              file=sys.stderr)
+    return refined
+
+
+def _surface_target(args) -> tuple[Target, dict]:
+    """The mesh target with its errors, cut to the K of :func:`plan_surface_fit`, whose La and Lb go into ``args``;
+    and the plan's report.  Raises BeyondBasisError where the basis cannot represent the target's factors."""
+    with mesh_progress(not args.quiet):
+        target = parse_target(args.target, lmax=30, numeig=_auto_cap(args), lmax_factor=SURFACE_TRUTH_DEGREE,
+                              source=args.source, subdivisions=args.subdivisions)
+        target = (target.with_noise(args.noise) if args.noise is not None
+                  else _refined(target, subdivision_spectrum(target), args.quiet))
+    plan = plan_surface_fit(target)
+    if not args.quiet:
+        print(plan.statement(), file=sys.stderr)
+    if plan.beyond_basis:
+        raise BeyondBasisError(plan.diagnosis())
+    if not plan.feasible:
+        print(f"warning: {plan.diagnosis()}", file=sys.stderr)
+    args.lmax_factor, args.lmax, args.numeig = plan.lmax_factor, plan.lmax, plan.numeig
+    if not args.quiet:
+        rel = plan.fit_errors[1:] / target.eigenvalues[1:plan.numeig]
+        print(f"the fit is held to the target's errors and the misfit of the best degree-{plan.lmax_factor} expansion "
+              f"of its cMCF factors: {rel.min():.1g} to {rel.max():.1g} (relative)", file=sys.stderr)
+    return plan.fitted_target(target), {"surface_plan": plan.to_dict(), "expected_error": plan.predicted}
 
 
 def _expected_error(args, model, target: Target) -> float:
@@ -308,37 +378,40 @@ def _fit(args) -> int:
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out} is a file; give a directory")
     claim_checkpoint(out / "checkpoint.h5", resume=args.resume, overwrite=args.overwrite)
-    auto = args.numeig == "auto"
-    if args.numeig in ("auto", "all") and args.target.partition(":")[0] not in ("star", "mesh"):
+    if args.numeig in ("auto", "all") and not _mesh_scheme(args):
         raise InvalidArgumentError(f"--numeig {args.numeig} needs a mesh target (star:... or mesh:...)")
     check_target_text(args.target)  # a typo is named now, not after a minute of planning
     extra = {}
-    planned = _plan(args)
+    if _resolve_defaults(args):
+        target, extra = _surface_target(args)
+        planned = None
+    else:
+        target, planned = None, _plan(args)
     if planned is not None:
         extra["numeig_plan"] = planned
+    auto = args.numeig == "auto"
     numeig = args.numeig
     if auto:
         numeig = _auto_cap(args)
     elif numeig == "all":
         numeig = _mesh_size(args) - 1
-    with mesh_progress(not args.quiet):  # a large mesh target: its size, and progress through cMCF and eigenpairs
-        target = parse_target(args.target, lmax=args.lmax, numeig=numeig, lmax_factor=args.lmax_factor,
-                              source=args.source, subdivisions=args.subdivisions)
+    if target is None:
+        with mesh_progress(not args.quiet):  # a large mesh target: its size, and progress through cMCF and eigenpairs
+            target = parse_target(args.target, lmax=args.lmax, numeig=numeig, lmax_factor=args.lmax_factor,
+                                  source=args.source, subdivisions=args.subdivisions)
     if args.truth is not None:
         target = dataclasses.replace(target, truth=read_truth(args.truth))
     changes = None
-    if args.noise is not None:
+    if target.errors is not None:
+        pass  # planned with its errors already
+    elif args.noise is not None:
         target = target.with_noise(args.noise)
     elif target.source in ("pl", "cmcf") and args.model != "mesh":
         # a harmonic model hears the mesh's own discretization error too: fit to it, not below it
         with mesh_progress(not args.quiet):
-            changes = subdivision_changes(target)
-        target = with_discretization_errors(target, changes)
-        if not args.quiet:
-            rel = target.errors[1:] / target.eigenvalues[1:]
-            print(f"the mesh's eigenvalues carry an estimated discretization error of {rel.min():.1g} to "
-                  f"{rel.max():.1g} (relative, against one subdivision): the fit weighs and stops by it",
-                  file=sys.stderr)
+            fine = subdivision_spectrum(target)
+        changes = subdivision_changes(target, fine)
+        target = _refined(target, fine, args.quiet)
     if planned is not None and target.numeig < planned["numeig"]:
         print(f"warning: the target has only {target.numeig} eigenvalues; the plan asked for {planned['numeig']}",
               file=sys.stderr)
@@ -350,7 +423,7 @@ def _fit(args) -> int:
         # the whole file, not only the K fitted: the heat trace needs many eigenvalues to be confident
         check_genus_zero(read_spectrum(where) if scheme == "spectrum" else target.eigenvalues, area=target.area)
     model = MODELS[args.model](args, target)
-    if target.errors is not None and args.model != "mesh":
+    if target.errors is not None and args.model != "mesh" and "expected_error" not in extra:
         extra["expected_error"] = _expected_error(args, model, target)
     if not args.log_factors and args.adaptive:
         raise InvalidArgumentError("--adaptive fits log factors (refinement follows log c); drop --no-log-factors")

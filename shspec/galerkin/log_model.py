@@ -34,6 +34,7 @@ from ..checks import finite_array
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
 from ..spectral_model import SpectralModel, Spectrum
+from ..sphere.evaluate import harmonic_matrix, weighted_expansion
 from ..sphere.factor import ConformalFactor
 from ..sphere.grid import GLQGrid, evaluate_on_grid, expand_grid, glq_grid
 from ..sphere.harmonics import check_degree, degrees, ncoeffs
@@ -43,7 +44,7 @@ from .gridforms import GridQuadraticForms
 from .model import (HarmonicModel, SpectrumResult, block_moves, laplacian_regularizer, rotation_generators,
                     smallest_agreeing_basis)
 
-__all__ = ["LogHarmonicModel", "LogSpectrumResult"]
+__all__ = ["LogHarmonicModel", "LogSpectrumResult", "log_expansion"]
 
 #: exp overflows above this; a trial point of the optimizer beyond it is rejected, not evaluated.
 _MAX_LOG = 700.0
@@ -255,6 +256,46 @@ class LogHarmonicModel(SpectralModel):
         la = self.lmax_factor if level is None else self.restrict(level).lmax_factor
         return block_moves(np.asarray(params, dtype=float), la, newest=newest)
 
+    def approximation(self, points, weights, values) -> tuple[np.ndarray, float]:
+        """:func:`log_expansion` to degree La."""
+        return log_expansion(points, weights, values, self.lmax_factor)
+
+    def error_root(self, params: np.ndarray) -> np.ndarray:
+        """R (nparams, nparams): δρ = ρ δu, so ‖δρ‖² / ‖ρ‖² = δuᵀ Q δu with Q_kl = ∫ ρ² Y_k Y_l / ∫ ρ², here by the
+        model's quadrature and returned as the triangular root of Q (QR of the weighted harmonics at the nodes)."""
+        rho = self.rho_on_grid(params)
+        weight = self.grid.weights * rho ** 2
+        y = harmonic_matrix(self.grid.unit_vectors().reshape(-1, 3), self.lmax_factor)
+        return np.linalg.qr(np.sqrt(weight.ravel() / weight.sum())[:, None] * y, mode="r")
+
     def to_factor(self, params: np.ndarray) -> ConformalFactor:
         """ρ = exp(u) expanded to degree 2·Lb, all the degrees the spectrum sees (for alignment and plots)."""
         return ConformalFactor(self.mass_coefficients(params), name="fit (exp of log rho)")
+
+
+def log_expansion(points, weights, values, lmax_factor: int) -> tuple[np.ndarray, float]:
+    """u, the weighted least-squares expansion of log ρ to degree La, and ‖exp(u) − ρ‖_w / ‖ρ‖_w at the points.
+
+    Parameters
+    ----------
+    points : (n, 3) array
+        Points of the unit sphere (their directions).
+    weights : (n,) array
+        Quadrature weights > 0 (e.g. lumped vertex areas of a sphere mesh).
+    values : (n,) array
+        ρ > 0 at the points.
+    lmax_factor : int
+        La.
+
+    Raises
+    ------
+    NotPositiveError
+        If a value is <= 0.
+    """
+    rho = np.asarray(values, dtype=float)
+    if not np.all(rho > 0):
+        raise NotPositiveError("rho must be > 0 at every point to be expanded in log rho")
+    u, _ = weighted_expansion(points, weights, np.log(rho), lmax_factor)
+    w = np.asarray(weights, dtype=float)
+    fitted = np.exp(harmonic_matrix(points, lmax_factor) @ u)
+    return u, float(np.sqrt(w @ (fitted - rho) ** 2 / (w @ rho ** 2)))

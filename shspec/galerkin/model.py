@@ -22,6 +22,7 @@ from ..gaunt.cache import get_table
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable, plan_bytes, table_size
 from ..spectral_model import SpectralModel, Spectrum, regularization_weight
 from ..resources import Need, check_need
+from ..sphere.evaluate import weighted_expansion
 from ..sphere.factor import ConformalFactor
 from ..sphere.harmonics import check_degree, degree_order, degrees, lmax_of_size, ncoeffs
 from ..sphere.random import random_centred_coefficients, random_coefficients
@@ -372,6 +373,11 @@ class HarmonicModel(SpectralModel):
         """
         la = self.lmax_factor if level is None else self.restrict(level).lmax_factor
         return block_moves(np.asarray(params, dtype=float), la, newest=newest)
+
+    def approximation(self, points, weights, values) -> tuple[np.ndarray, float]:
+        """ρ's weighted least-squares expansion to degree La and its relative misfit
+        (:func:`~shspec.sphere.evaluate.weighted_expansion`)."""
+        return weighted_expansion(points, weights, values, self.lmax_factor)
 
     def to_factor(self, params: np.ndarray) -> ConformalFactor:
         return ConformalFactor(np.array(params, dtype=float), name="fit")

@@ -9,9 +9,11 @@ With the singular values s₁ ≥ … of J on the remaining d directions:
 * ``rank``: how many exceed ``rank_tol``·s₁; ``underdetermined`` when rank < d (fewer informative eigenvalues than
   parameters, K − 1 < d, or directions the first K eigenvalues do not see);
 * ``condition`` = s₁ / s_d: a relative eigenvalue error r leaves p uncertain by about κ·r in the worst direction;
-* ``estimated_error`` = ‖J⁺ r‖ / ‖p‖ for the final relative residuals r: the linearized relative error of p (of
-  ρ in L2 for harmonic coefficients, whose basis is orthonormal) that the residual left;
-* ``noise_gain`` = ‖J⁺‖_F / ‖p‖: the expected relative error of p per unit of independent relative noise σ on each
+* ``estimated_error`` = ‖R J⁺ r‖ for the final relative residuals r: the linearized relative L2 error of ρ that the
+  residual left, with R the model's :meth:`~shspec.spectral_model.SpectralModel.error_root` (‖R δp‖ = ‖δρ‖/‖ρ‖:
+  I/‖p‖ for harmonic coefficients, whose basis is orthonormal; the ρ²-weighted Gram root for log ρ, where
+  δρ = ρ δu; the area weights for per-vertex factors);
+* ``noise_gain`` = ‖R J⁺‖_F: the expected relative error of ρ per unit of independent relative noise σ on each
   eigenvalue (E‖δp‖ ≈ σ ‖J⁺‖_F).
 
 Where the first K eigenvalues determine fewer directions than there are parameters, the parameters with exactly
@@ -60,13 +62,13 @@ class Identifiability:
     condition : float
         s₁ / s_d (inf when underdetermined).
     estimated_error : float or None
-        Linearized relative error of p left by the final residual (None without one).
+        Linearized relative L2 error of ρ left by the final residual (None without one).
     noise_gain : float
-        Relative error of p per unit relative eigenvalue noise (over the determined directions).
+        Relative error of ρ per unit relative eigenvalue noise (over the determined directions).
     singular_values : (min(K−1, d),) array
     underdetermined : bool
     noise_error : float or None
-        The error bar the target's own errors leave: the expected relative error of p, √trace((JᵀWJ)⁻¹)/‖p‖ with
+        The error bar the target's own errors leave: the expected relative error of ρ, √trace(R(JᵀWJ)⁻¹Rᵀ) with
         W = diag(1/σ_rel²) over the determined directions (weighted least squares, Gaussian errors); inf when
         underdetermined; None when no errors were given.
     converged : bool or None
@@ -169,14 +171,19 @@ def identifiability(model: SpectralModel, params, numeig: int, *, fit_area: bool
     p, numeig, rank_tol, spec = _checked(model, params, numeig, rank_tol)
     if residuals is not None:
         residuals = finite_array(residuals, "residuals", (numeig,))
-    if noise is not None:
-        noise = finite_array(noise, "noise", (numeig,))
-        if np.any(noise[1:] <= 0):
-            raise InvalidArgumentError("noise must be > 0 for every eigenvalue after lambda_0")
-    return _analyse(model, p, spec, (numeig,), fit_area, rank_tol, residuals, noise)[0]
+    return _analyse(model, p, spec, (numeig,), fit_area, rank_tol, residuals, _checked_noise(noise, numeig))[0]
 
 
-def identifiability_by_numeig(model: SpectralModel, params, numeigs, *, fit_area: bool = False,
+def _checked_noise(noise, numeig: int):
+    if noise is None:
+        return None
+    noise = finite_array(noise, "noise", (numeig,))
+    if np.any(noise[1:] <= 0):
+        raise InvalidArgumentError("noise must be > 0 for every eigenvalue after lambda_0")
+    return noise
+
+
+def identifiability_by_numeig(model: SpectralModel, params, numeigs, *, fit_area: bool = False, noise=None,
                               rank_tol: float = 1e-12) -> list[Identifiability]:
     """:func:`identifiability` for several K from one spectrum of max(numeigs) eigenpairs (the Jacobian's first
     K rows are those of K eigenvalues).
@@ -187,6 +194,8 @@ def identifiability_by_numeig(model: SpectralModel, params, numeigs, *, fit_area
         As in :func:`identifiability`.
     numeigs : sequence of int
         The K values, each ≥ 2.
+    noise : (max(numeigs),) array, optional
+        Relative one-sigma errors of the eigenvalues (entry 0 ignored), for each K's ``noise_error``.
 
     Returns
     -------
@@ -197,7 +206,7 @@ def identifiability_by_numeig(model: SpectralModel, params, numeigs, *, fit_area
     if not ks:
         raise InvalidArgumentError("numeigs must name at least one K")
     p, _, rank_tol, spec = _checked(model, params, max(ks), rank_tol)
-    return _analyse(model, p, spec, ks, fit_area, rank_tol, None)
+    return _analyse(model, p, spec, ks, fit_area, rank_tol, None, _checked_noise(noise, max(ks)))
 
 
 def _analyse(model, p, spec, ks, fit_area, rank_tol, residuals, noise=None) -> list[Identifiability]:
@@ -211,7 +220,7 @@ def _analyse(model, p, spec, ks, fit_area, rank_tol, residuals, noise=None) -> l
         nsym = int(np.sum(sv > 1e-10 * max(sv[0], 1e-300)))
         basis = q[:, nsym:]  # orthonormal complement of the symmetry directions
     d = basis.shape[1]
-    norm = np.linalg.norm(p)
+    root = model.error_root(p)[:, free] @ basis  # errors of the parameters, measured as relative errors of rho
     out = []
     for numeig in ks:
         u, s, vt = np.linalg.svd(jac_all[:numeig - 1] @ basis, full_matrices=False)
@@ -219,14 +228,15 @@ def _analyse(model, p, spec, ks, fit_area, rank_tol, residuals, noise=None) -> l
         under = rank < d
         condition = float(s[0] / s[rank - 1]) if not under else float("inf")
         pinv = (vt[:rank].T / s[:rank]) @ u[:, :rank].T
-        estimated = None if residuals is None else float(np.linalg.norm(pinv @ residuals[1:]) / norm)
+        estimated = None if residuals is None else float(np.linalg.norm(root @ (pinv @ residuals[1:])))
         noise_error = None
         if noise is not None:
-            sw = np.linalg.svd(jac_all[:numeig - 1] @ basis / noise[1:numeig, None], compute_uv=False)
-            noise_error = float("inf") if under else float(np.sqrt(np.sum(1.0 / sw[:d] ** 2)) / norm)
+            _, sw, vw = np.linalg.svd(jac_all[:numeig - 1] @ basis / noise[1:numeig, None], full_matrices=False)
+            # the weighted least-squares covariance is V diag(1/s²) Vᵀ: its trace in the metric of rho's error
+            noise_error = float("inf") if under else float(np.linalg.norm(root @ (vw[:d].T / sw[:d])))
         out.append(Identifiability(numeig=numeig, free=int(free.size), symmetries=nsym, directions=d, rank=rank,
                                    condition=condition, estimated_error=estimated,
-                                   noise_gain=float(np.linalg.norm(pinv) / norm), singular_values=s,
+                                   noise_gain=float(np.linalg.norm(root @ pinv)), singular_values=s,
                                    underdetermined=under, noise_error=noise_error))
     return out
 

@@ -14,15 +14,19 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
+
 from ..atomic import save_figure, write_text
 from ..errors import InvalidArgumentError, NotPositiveError
+from ..mesh.cotan import vertex_areas
 from ..outputs import ensure_directory
+from ..sphere.evaluate import sample_harmonic
 from . import plots
 from .checkpoint import options_dict, save_result
 from .problem import CHI2_SIGMAS
 from .results import FitResult
 
-__all__ = ["summary", "write_result", "success_definition", "alignment_record"]
+__all__ = ["summary", "write_result", "success_definition", "alignment_record", "surface_record"]
 
 
 def alignment_record(result: FitResult) -> dict | None:
@@ -35,6 +39,39 @@ def alignment_record(result: FitResult) -> dict | None:
         return None
     return {"relative_error": aligned.relative_error, "power_error": aligned.power_error,
             "mirrored": aligned.mirrored, "angles": aligned.angles.tolist()}
+
+
+def surface_record(result: FitResult) -> dict | None:
+    """For a fit of a mesh target by a model that can express the target's cMCF factors c
+    (:meth:`~shspec.spectral_model.SpectralModel.approximation`): the best solution, aligned with the truth, at the
+    vertices of the cMCF sphere against c — area-weighted relative L2 error, Pearson correlation and RMS of the
+    logarithms — beside the model's floor, the error of its best approximation of c, and the error bar against c,
+    √(floor² + bar²) with the bar of the target's errors (:class:`~shspec.inverse.identifiability.Identifiability`).
+    None otherwise."""
+    target, model = result.target, result.model
+    if target.sphere is None or target.factors is None:
+        return None
+    points, weights, c = target.sphere.vertices, vertex_areas(target.sphere), np.asarray(target.factors, float)
+    best = model.approximation(points, weights, c)
+    if best is None:
+        return None
+    out = {"floor": best[1], "truth_range": [float(c.min()), float(c.max())]}
+    bar = result.identifiability().noise_error
+    if bar is not None and np.isfinite(bar):
+        # the floor, which no spectrum can lower, and the spread the errors leave about it
+        out["error_bar"] = float(np.hypot(best[1], bar))
+    try:
+        aligned = result.alignment()
+    except NotPositiveError as exc:
+        return {**out, "skipped": f"no alignment: {exc}"}
+    fitted = sample_harmonic(aligned.aligned, points)
+    out["fitted_range"] = [float(fitted.min()), float(fitted.max())]
+    out["factor_error"] = float(np.sqrt(weights @ (fitted - c) ** 2 / (weights @ c ** 2)))
+    if np.all(fitted > 0):
+        lf, lc = np.log(fitted), np.log(c)
+        out["log_correlation"] = float(np.corrcoef(lf, lc)[0, 1])
+        out["log_rms"] = float(np.sqrt(weights @ (lf - lc) ** 2 / weights.sum()))
+    return out
 
 
 def success_definition(result: FitResult) -> str:
@@ -68,6 +105,9 @@ def summary(result: FitResult) -> dict:
     if alignment is not None:
         out["alignment"] = alignment
     out.update(result.model.compare(best.params, target))
+    surface = surface_record(result)
+    if surface is not None:
+        out["surface"] = surface
     return out
 
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..checks import check_int
 from ..errors import InvalidArgumentError, MeshError
-from ..sphere.evaluate import harmonic_matrix
+from ..sphere.evaluate import harmonic_matrix, weighted_expansion
 from ..sphere.harmonics import check_degree
 from .cotan import vertex_areas
 from .triangle_mesh import TriangleMesh
@@ -97,12 +97,11 @@ def fit_harmonic(sphere: TriangleMesh, values, lmax: int, method: str = "lsq") -
         raise InvalidArgumentError(f"lmax = {lmax} needs {(lmax + 1) ** 2} coefficients; with {sphere.nvertices} "
                                    "vertices use at most half as many")
     w = vertex_areas(sphere)
-    Y = harmonic_matrix(sphere.vertices, lmax)
     if method == "lsq":
-        sw = np.sqrt(w)
-        a = np.linalg.lstsq(sw[:, None] * Y, sw * f, rcond=None)[0]
-    else:
-        a = Y.T @ (w * f)
+        a, residual = weighted_expansion(sphere.vertices, w, f, lmax)
+        return HarmonicFit(a, lmax, method, residual)
+    Y = harmonic_matrix(sphere.vertices, lmax)
+    a = Y.T @ (w * f)
     r = f - Y @ a
     residual = float(np.sqrt(np.sum(w * r * r) / max(np.sum(w * f * f), np.finfo(float).tiny)))
     return HarmonicFit(a, lmax, method, residual)

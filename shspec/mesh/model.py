@@ -287,6 +287,12 @@ class MeshModel(SpectralModel):
         c = self._factors(params)
         return ConformalFactor(fit_harmonic(self.mesh, c, self.lmax_factor).coefficients, name="fit (harmonic)")
 
+    def error_root(self, params: np.ndarray) -> np.ndarray:
+        """R = diag(√m) / ‖c‖_m (n, n): ‖R δc‖ is the area-weighted relative L2 error of the factors, as
+        :meth:`compare` measures it (m the vertex areas)."""
+        c = self._factors(params)
+        return np.diag(np.sqrt(self.vertex_areas) / np.sqrt(self.vertex_areas @ c ** 2))
+
     def compare(self, params: np.ndarray, target) -> dict:
         """With the target's per-vertex truth (``target.factors`` on ``target.sphere``, its cMCF factors): the
         area-weighted relative L2 error of the factors, the RMS and the Pearson correlation of their logarithms over

@@ -3,15 +3,23 @@
 Steps (each reported with a status, never faked):
 
 1. cMCF of the target (:func:`~shspec.mesh.cmcf.cmcf`): the sphere mesh and the per-vertex factors c.
-2. Spectra, first k eigenvalues: the target's PL spectrum; the sphere carrying c, PL (:class:`MeshModel`) and
-   harmonic (c expanded to degree La, :class:`HarmonicModel`; skipped when that expansion is not positive, as for
-   the bunny, whose factors span seven decades); the fitted factors (step 4); the re-embedded meshes.
-3. Re-embedding of c (:func:`~shspec.embed.embed`), its edge-length error, folds, self-intersections, bump/dip
+2. The target's cotan spectrum refined by one subdivision, with its discretization error
+   (:func:`~shspec.targets.refined_target`)
+   and, unless La and K are given, the plan of a log-ρ fit (:func:`~shspec.inverse.surface_plan.plan_surface_fit`):
+   La, K and Lb from the floor of the basis and the target's errors, and the error they predict.
+3. Spectra, first K eigenvalues: the target's PL spectrum; the sphere carrying c, PL (:class:`MeshModel`) and
+   harmonic (log c expanded to degree La, :class:`LogHarmonicModel`: positive by construction, whatever the range
+   of c); the fitted ρ (step 5); the re-embedded meshes.
+4. Re-embedding of c (:func:`~shspec.embed.embed`), its edge-length error, folds, self-intersections, bump/dip
    ambiguity, Hausdorff/Chamfer distance to the target after rigid alignment, and the factor error of the
    re-embedded mesh: its own cMCF factors against the target's, as rotation-invariant per-degree power and after
    Möbius + O(3) alignment (:func:`shspec.inverse.align`).
-4. The inverse fit (:func:`shspec.inverse.fit`, harmonic model) of the target's PL spectrum, its factor error after
-   alignment, and the re-embedding of the fitted factors sampled on the cMCF sphere.
+5. The inverse fit (:func:`shspec.inverse.fit`, log-ρ model) of the target's PL spectrum with its errors; the fitted
+   ρ against c at the cMCF vertices after alignment (:func:`~shspec.inverse.output.surface_record`: factor error,
+   log correlation, the floor beside them), the error bar and the predicted error; and the re-embedding of the
+   fitted factors.  The step is "ok" only when the fit reaches its target within the target's errors; where the plan
+   shows that the basis cannot represent c (factors spanning decades), it is not attempted and the status says,
+   in one line, what it would take.
 """
 
 from __future__ import annotations
@@ -24,14 +32,17 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import save_figure, write_text
-from ..checks import check_int, check_options
+from ..checks import check_float, check_int, check_options
 from ..embed.ambiguity import AmbiguityReport, detect_ambiguity
 from ..embed.render import render_mesh
 from ..embed.distances import SurfaceDistance, surface_distance
 from ..embed.embed import EmbedOptions, EmbedResult, embed
-from ..errors import InvalidArgumentError, NotPositiveError, ShspecError
-from ..galerkin.model import HarmonicModel
-from ..inverse import FitOptions, align, fit, mesh_target
+from ..errors import InvalidArgumentError, ShspecError
+from ..galerkin.log_model import LogHarmonicModel
+from ..galerkin.truncation import basis_degree_for
+from ..inverse import FitOptions, align, fit
+from ..inverse.output import success_definition, surface_record
+from ..inverse.surface_plan import DEFAULT_ACCURACY, log_floor, plan_surface_fit
 from ..outputs import ensure_directory
 from ..mesh.bridge import fit_harmonic, mesh_band_limit
 from ..mesh.cmcf import CMCFResult, cmcf
@@ -42,13 +53,18 @@ from ..mesh.triangle_mesh import TriangleMesh
 from ..report import validation_markdown
 from ..sphere.evaluate import sample_harmonic
 from ..sphere.rotate import power_spectrum
+from ..targets import mesh_target, refined_target
 
 __all__ = ["ValidationOptions", "ValidationResult", "validate_target", "write_report", "SPECTRUM_LABELS"]
 
 #: What each spectrum of a validation is, as figure legends say it.
-SPECTRUM_LABELS = {"target_pl": "target mesh (cotan)", "cmcf_pl": "cMCF sphere with its factors (cotan)",
-                   "cmcf_harmonic": "cMCF factors in harmonics (Galerkin)", "embedded_pl": "re-embedded cMCF factors",
-                   "fit_harmonic": "fitted rho (Galerkin)", "fit_embedded_pl": "re-embedded fitted factors"}
+SPECTRUM_LABELS = {"target_pl": "target mesh, subdivided once (cotan)", "cmcf_pl": "cMCF sphere with its factors (cotan)",
+                   "cmcf_harmonic": "cMCF factors, log expanded (Galerkin)", "embedded_pl": "re-embedded cMCF factors",
+                   "fit_harmonic": "fitted log rho (Galerkin)", "fit_embedded_pl": "re-embedded fitted factors"}
+
+
+#: Degree of the harmonic expansion of the cMCF factors that a fit is aligned with (the truth of the target).
+TRUTH_DEGREE = 16
 
 
 @dataclass(frozen=True)
@@ -57,12 +73,14 @@ class ValidationOptions:
 
     Attributes
     ----------
-    numeig : int
-        Eigenvalues k compared (λ₀ = 0 included).
-    lmax, lmax_factor : int
-        Harmonic basis degree Lb and factor degree La.
+    numeig : int or None
+        Eigenvalues K compared and fitted (λ₀ = 0 included); None: planned (from min(n/4, 300)).
+    lmax, lmax_factor : int or None
+        Harmonic basis degree Lb and log-ρ degree La; None: planned.
+    accuracy : float
+        Relative L2 error of ρ the plan aims for.
     fit : bool
-        Run the inverse fit when the inverse package is available.
+        Run the inverse fit.
     fit_starts : int
         Random starts of the fit.
     ambiguity : bool
@@ -71,20 +89,21 @@ class ValidationOptions:
         Options of every re-embedding.
     """
 
-    numeig: int = 30
-    lmax: int = 16
-    lmax_factor: int = 8
+    numeig: int | None = None
+    lmax: int | None = None
+    lmax_factor: int | None = None
+    accuracy: float = DEFAULT_ACCURACY
     fit: bool = True
     fit_starts: int = 1
     ambiguity: bool = True
     embed: EmbedOptions = field(default_factory=EmbedOptions)
 
     def __post_init__(self):
-        for name in ("numeig", "lmax", "lmax_factor", "fit_starts"):
-            value = getattr(self, name)
-            check_int(value, f"ValidationOptions.{name}", minimum=1)
-        if self.numeig < 2:
-            raise InvalidArgumentError("ValidationOptions.numeig must be >= 2")
+        for name in ("numeig", "lmax", "lmax_factor"):
+            if getattr(self, name) is not None:
+                check_int(getattr(self, name), f"ValidationOptions.{name}", minimum=2 if name == "numeig" else 1)
+        check_int(self.fit_starts, "ValidationOptions.fit_starts", minimum=1)
+        check_float(self.accuracy, "ValidationOptions.accuracy", positive=True)
         if not isinstance(self.embed, EmbedOptions):
             raise InvalidArgumentError("ValidationOptions.embed must be EmbedOptions")
 
@@ -169,8 +188,6 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
     say = log if log is not None else (lambda _msg: None)
     start = time.perf_counter()
-    k = min(opt.numeig, mesh.nvertices - 1)
-    la = mesh_band_limit(mesh.nvertices, opt.lmax_factor)
     status, spectra, times = {}, {}, {}
 
     t = time.perf_counter()
@@ -179,15 +196,27 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
     status["cmcf"] = "ok" if flow.success else "ok (not converged)"
     say(f"cMCF: {flow.iterations} steps, roundness {flow.roundness:.2e}, {times['cmcf']:.1f} s")
 
-    spectra["target_pl"] = mesh_spectrum(mesh, k, whole_multiplets=False).eigenvalues
+    t = time.perf_counter()
+    k0 = min(opt.numeig or max(2, min(mesh.nvertices // 4, 300)), mesh.nvertices - 1)
+    target = refined_target(mesh_target(mesh, 30, k0, TRUTH_DEGREE, source="pl", name=name, flow=flow))
+    plan = None
+    if opt.lmax_factor is None and opt.numeig is None:
+        plan = plan_surface_fit(target, accuracy=opt.accuracy)
+        la, k, lb = plan.lmax_factor, plan.numeig, plan.lmax
+        say(plan.statement())
+    else:
+        la = mesh_band_limit(mesh.nvertices, opt.lmax_factor or 8)
+        k = k0
+        lb = opt.lmax or max(basis_degree_for(k, la), 16)
+    target = target.first(k) if plan is None else plan.fitted_target(target)
+    times["plan"] = time.perf_counter() - t
+
+    spectra["target_pl"] = target.eigenvalues
     spectra["cmcf_pl"] = MeshModel(flow.sphere).spectrum(flow.factors, k).eigenvalues
-    expansion = fit_harmonic(flow.sphere, flow.factors, la)
-    try:
-        spectra["cmcf_harmonic"] = HarmonicModel(opt.lmax, la).spectrum(expansion.coefficients, k).eigenvalues
-        status["cmcf_harmonic"] = "ok"
-    except NotPositiveError as exc:
-        status["cmcf_harmonic"] = f"skipped: the degree-{la} expansion of the cMCF factors is not a metric ({exc})"
-    say(f"spectra: target, cMCF PL, cMCF harmonic ({status['cmcf_harmonic'][:7]})")
+    log_c, floor = log_floor(flow.sphere, flow.factors, la)
+    spectra["cmcf_harmonic"] = LogHarmonicModel(lb, la).eigenvalues(log_c, k)
+    status["cmcf_harmonic"] = "ok"
+    say(f"spectra: target, cMCF PL, cMCF log-harmonic (La = {la}: floor {floor:.2g})")
 
     emb = embed(flow.sphere, flow.factors, opt.embed)
     times["embed"] = emb.seconds
@@ -208,25 +237,30 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
     fit_info = {}
     if not opt.fit:
         status["fit"] = "skipped: disabled"
+    elif plan is not None and plan.beyond_basis:
+        status["fit"] = f"not attempted: {plan.diagnosis()}"
     else:
         try:
             t = time.perf_counter()
-            target = mesh_target(mesh, opt.lmax, k, la, source="pl", name=name)
-            result = fit(target, HarmonicModel(opt.lmax, la), FitOptions(schedule=(), basin_hops=0, starts=opt.fit_starts))
+            result = fit(target, LogHarmonicModel(lb, la), FitOptions(starts=opt.fit_starts, progress=False))
             times["fit"] = time.perf_counter() - t
-            coeffs = np.asarray(result.best.params, dtype=float)
-            al = align(coeffs, expansion.coefficients)
-            spectra["fit_harmonic"] = HarmonicModel(opt.lmax, la).spectrum(coeffs, k).eigenvalues
-            fit_info = {"aligned_l2_error": float(al.relative_error), "power_error": float(al.power_error),
-                        "seconds": times["fit"]}
-            c_fit = sample_harmonic(al.aligned, flow.sphere.vertices)
+            best = result.best
+            spectra["fit_harmonic"] = result.model.eigenvalues(best.params, k)
+            fit_info = {"seconds": times["fit"], "residual_chi2_reached": best.success,
+                        "error_bar": result.identifiability().noise_error,
+                        **(surface_record(result) or {})}
+            if plan is not None:
+                fit_info["predicted_error"] = plan.predicted
+            verdict = ("ok" if best.success else "failed: the fitted spectrum does not reach the target within its "
+                       f"errors ({success_definition(result)} does not hold)")
+            c_fit = sample_harmonic(result.alignment().aligned, flow.sphere.vertices)
             if np.any(c_fit <= 0):
-                status["fit"] = "ok; embedding skipped: the fitted factor is not positive at every vertex"
+                status["fit"] = f"{verdict}; embedding skipped: the fitted factor is not positive at every vertex"
             else:
                 fit_emb = embed(flow.sphere, c_fit, opt.embed)
                 fit_dist = surface_distance(fit_emb.mesh, mesh)
                 spectra["fit_embedded_pl"] = mesh_spectrum(fit_emb.mesh, k, whole_multiplets=False).eigenvalues
-                status["fit"] = "ok"
+                status["fit"] = verdict
         except ShspecError as exc:
             status["fit"] = f"failed: {exc}"
     say(f"fit: {status['fit']}")
@@ -234,7 +268,8 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
     lam0 = spectra["target_pl"]
     summary = {
         "name": name, "nvertices": mesh.nvertices, "nfaces": mesh.nfaces, "numeig": k, "lmax": opt.lmax,
-        "lmax_factor": la,
+        "lmax_factor": la, "plan": None if plan is None else plan.to_dict(),
+        "target_errors": [float(x) for x in target.errors],
         "hausdorff_relative": dist.hausdorff_relative, "chamfer_relative": dist.chamfer_relative,
         "edge_length_error": emb.edge_error_rms, "edge_length_error_max": emb.edge_error_max,
         "folded_faces": emb.folded_faces, "self_intersections": emb.self_intersections,
@@ -242,7 +277,7 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
         "embed_seconds": emb.seconds, "reflected": dist.reflected,
         "cmcf": {"iterations": flow.iterations, "roundness": flow.roundness, "success": flow.success,
                  "factor_min": float(flow.factors.min()), "factor_max": float(flow.factors.max()),
-                 "harmonic_residual": expansion.residual},
+                 "log_floor": floor},
         "spectral_error": {key: float(np.max(np.abs(v[1:] / lam0[1:] - 1))) for key, v in spectra.items()
                            if key != "target_pl"},
         "spectra": {key: v.tolist() for key, v in spectra.items()},

@@ -15,7 +15,7 @@ from scipy.special import sph_harm_y
 from ..errors import InvalidArgumentError
 from .harmonics import as_coefficients, check_degree, degree_order, lmax_of_size
 
-__all__ = ["points_to_angles", "harmonic_matrix", "sample_harmonic"]
+__all__ = ["points_to_angles", "harmonic_matrix", "sample_harmonic", "weighted_expansion"]
 
 
 def _points(points) -> np.ndarray:
@@ -71,3 +71,39 @@ def sample_harmonic(coeffs, points) -> np.ndarray:
     """Values (n,) of the harmonic expansion ``coeffs`` (flat vector, cilm array or SHCoeffs) at points (n, 3)."""
     a = as_coefficients(coeffs)
     return harmonic_matrix(points, lmax_of_size(a.size)) @ a
+
+
+def weighted_expansion(points, weights, values, lmax: int) -> tuple[np.ndarray, float]:
+    """The weighted least-squares expansion of values at points: a = argmin Σ_i w_i (f_i − Σ_k a_k Y_k(x_i))².
+
+    Parameters
+    ----------
+    points : (n, 3) array
+        Points; only their directions matter.
+    weights : (n,) array
+        Quadrature weights w_i > 0 (e.g. the lumped vertex areas of a sphere mesh).
+    values : (n,) array
+        f_i, finite.
+    lmax : int
+        Band limit L; (L + 1)² must not exceed n.
+
+    Returns
+    -------
+    a : ((L + 1)²,) array
+        Flat coefficients (the unit of the values).
+    residual : float
+        ‖f − Σ a_k Y_k‖_w / ‖f‖_w, the relative weighted L2 misfit at the points.
+    """
+    y = harmonic_matrix(points, lmax)
+    w = np.asarray(weights, dtype=float)
+    f = np.asarray(values, dtype=float)
+    if w.shape != (y.shape[0],) or f.shape != (y.shape[0],):
+        raise InvalidArgumentError(f"weights and values must have shape ({y.shape[0]},), got {w.shape} and {f.shape}")
+    if not (np.all(np.isfinite(f)) and np.all(np.isfinite(w)) and np.all(w > 0)):
+        raise InvalidArgumentError("values must be finite and weights finite and > 0")
+    if y.shape[1] > y.shape[0]:
+        raise InvalidArgumentError(f"lmax = {lmax} needs {y.shape[1]} coefficients; {y.shape[0]} points are too few")
+    sw = np.sqrt(w)
+    a = np.linalg.lstsq(sw[:, None] * y, sw * f, rcond=None)[0]
+    r = f - y @ a
+    return a, float(np.sqrt(np.sum(w * r * r) / max(np.sum(w * f * f), np.finfo(float).tiny)))

@@ -100,3 +100,21 @@ def test_a_harmonic_fit_of_a_mesh_spectrum_fits_to_the_mesh_discretization_error
     assert "chi^2" not in summary["success_definition"]  # the mesh model shares the mesh's discretization
     with pytest.raises(InvalidArgumentError, match="not a mesh's cotan spectrum"):
         with_discretization_errors(Target("t", target.eigenvalues))
+
+
+@pytest.mark.slow
+def test_the_error_bar_of_a_log_rho_fit_is_an_error_of_rho_and_holds_the_measured_error():
+    from shspec.galerkin import LogHarmonicModel
+    from shspec.sphere.random import random_coefficients
+
+    model = LogHarmonicModel(9, 3)
+    u = random_coefficients(np.random.default_rng(3), 3, 0.3 * np.sqrt(4 * np.pi), low=2)
+    exact = model.eigenvalues(u, 30)
+    sigma = 1e-5
+    noise = np.r_[0.0, np.random.default_rng(8).standard_normal(29)]
+    target = Target("noisy log", exact * (1 + sigma * noise), truth=model.to_factor(u), errors=sigma * exact)
+    result = fit(target, model, FitOptions(starts=1, seed=0))
+    assert result.best.success
+    ident = result.identifiability()
+    measured = align(result.factor(), target.truth).relative_error
+    assert ident.noise_error / 3 <= measured <= 3 * ident.noise_error

@@ -1,0 +1,97 @@
+"""Hearing a mesh's surface: the error metric of log rho, the refined target and its Richardson error, and the plan of
+a log-rho fit (floor against noise) with its diagnosis where the harmonic basis cannot go."""
+
+import json
+
+import numpy as np
+import pytest
+
+from shspec.cli import main
+from shspec.errors import InvalidArgumentError
+from shspec.galerkin import LogHarmonicModel
+from shspec.galerkin.truncation import basis_degree_for
+from shspec.inverse.surface_plan import log_floor, plan_surface_fit
+from shspec.mesh.model import MeshModel
+from shspec.mesh.refine import subdivide, subdivision_eigenvalues
+from shspec.mesh.shapes import icosphere, star_surface
+from shspec.sphere.grid import evaluate_on_grid, glq_grid
+from shspec.sphere.random import random_coefficients
+from shspec.targets import Target, mesh_target, refined_target, subdivision_changes
+
+
+def test_the_log_models_error_metric_is_the_relative_l2_change_of_rho():
+    model = LogHarmonicModel(12, 6)
+    rng = np.random.default_rng(1)
+    u = random_coefficients(rng, 6, 0.6)
+    u[0] = 1.0
+    du = 1e-6 * rng.standard_normal(u.size)
+    grid = glq_grid(60)  # an independent quadrature, exact for the squares of both to rounding
+    a, b = np.exp(evaluate_on_grid(u, grid)), np.exp(evaluate_on_grid(u + du, grid))
+    expected = np.sqrt(np.sum(grid.weights * (b - a) ** 2) / np.sum(grid.weights * a ** 2))
+    assert np.linalg.norm(model.error_root(u) @ du) == pytest.approx(expected, rel=1e-5)
+    # the default metric I/|p| is not it: u_00 carries the area, so |du|/|u| depends on the scale
+    assert abs(np.linalg.norm(du) / np.linalg.norm(u) / expected - 1) > 0.1
+
+
+def test_the_refined_target_is_the_subdivisions_spectrum_with_a_third_of_its_change_as_error():
+    target = mesh_target(star_surface(3, 3, 0.3, 2), 10, 20, 4)
+    coarse, fine = subdivision_eigenvalues(target.mesh, 20)
+    refined = refined_target(target)
+    np.testing.assert_allclose(refined.eigenvalues, fine, rtol=1e-12)
+    np.testing.assert_allclose(refined.errors[1:], np.abs(coarse[1:] - fine[1:]) / 3, rtol=1e-9)
+    np.testing.assert_allclose(subdivision_changes(target)[1:], np.abs(coarse[1:] - fine[1:]) / coarse[1:], rtol=1e-9)
+    # second order: one more subdivision moves lambda' by about the Richardson error, far less than it moved lambda
+    finer = subdivision_eigenvalues(subdivide(target.mesh)[0], 20)[1]
+    moved = np.abs(finer[1:] - fine[1:])
+    assert np.all(moved <= 1.5 * refined.errors[1:])
+    assert np.median(moved / np.abs(coarse[1:] - fine[1:])) < 0.4
+    with pytest.raises(InvalidArgumentError, match="not a mesh's cotan spectrum"):
+        refined_target(Target("t", target.eigenvalues))
+
+
+def _planned_target(mesh, numeig):
+    return refined_target(mesh_target(mesh, 20, numeig, 12, source="pl"))
+
+
+@pytest.mark.slow
+def test_the_plan_balances_the_floor_of_the_basis_against_the_targets_errors():
+    target = _planned_target(star_surface(3, 3, 0.3, 3), 160)
+    plan = plan_surface_fit(target, accuracy=0.05)
+    floors = {r.lmax_factor: r.floor for r in plan.rows}
+    las = sorted(floors)
+    assert all(floors[a] >= floors[b] for a, b in zip(las, las[1:]))  # nested least squares
+    for la in (2, las[-1]):
+        assert floors[la] == pytest.approx(log_floor(target.sphere, target.factors, la)[1], rel=1e-12)
+    best = min(r.predicted for r in plan.rows)
+    chosen = next(r for r in plan.rows if (r.lmax_factor, r.numeig) == (plan.lmax_factor, plan.numeig))
+    assert plan.predicted == chosen.predicted <= 1.1 * best
+    assert plan.predicted == pytest.approx(np.hypot(chosen.floor, chosen.noise))
+    # the noise grows with the degree at a fixed K: more unknowns from the same eigenvalues
+    noise = [r.noise for r in plan.rows if r.numeig == target.numeig]
+    assert noise[-1] > noise[0]
+    assert plan.lmax >= basis_degree_for(plan.numeig, plan.lmax_factor)
+    record = json.loads(json.dumps(plan.to_dict()))
+    assert record["feasible"] == plan.feasible and record["lmax_factor"] == plan.lmax_factor
+    assert (plan.diagnosis() is None) == plan.feasible
+
+
+@pytest.mark.slow
+def test_factors_spanning_decades_are_diagnosed_before_fitting(tmp_path, capsys):
+    sphere = icosphere(3)
+    z = sphere.vertices[:, 2]
+    factors = np.exp(9 * z ** 12)  # a narrow cap 8000 times larger than the rest
+    spectrum = MeshModel(sphere).spectrum(factors, 60).eigenvalues
+    spectrum[0] = 0.0
+    target = Target("cap", spectrum, errors=np.r_[0.0, 1e-3 * spectrum[1:]], sphere=sphere, factors=factors,
+                    source="pl")
+    plan = plan_surface_fit(target, accuracy=0.05)
+    assert plan.beyond_basis and not plan.feasible
+    assert plan.floor > 0.05 and plan.factor_range[1] / plan.factor_range[0] > 1000
+    assert "--model mesh" in plan.diagnosis() and "span" in plan.diagnosis()
+    assert main(["fit", "--target", "mesh:spot_600", "--out", str(tmp_path / "spot")]) == 1
+    err = capsys.readouterr().err
+    assert "cannot reach" in err and "--model mesh" in err and not (tmp_path / "spot" / "summary.json").exists()
+    with pytest.raises(InvalidArgumentError, match="no errors"):
+        plan_surface_fit(Target("t", spectrum, sphere=sphere, factors=factors))
+    with pytest.raises(InvalidArgumentError, match="no cMCF factors"):
+        plan_surface_fit(Target("t", spectrum, errors=target.errors))
