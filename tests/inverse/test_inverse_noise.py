@@ -90,7 +90,7 @@ def test_a_harmonic_fit_of_a_mesh_spectrum_fits_to_the_mesh_discretization_error
     _, rel = eigenvalue_errors(target.mesh, 25)
     np.testing.assert_allclose(target.errors[1:], RICHARDSON_FACTOR * rel[1:] * target.eigenvalues[1:], rtol=1e-12)
     common = ["--target", "star:3,3,0.3", "--subdivisions", "2", "--lmax", "10", "--lmax-factor", "4",
-              "--numeig", "25", "--starts", "1", "--max-iter", "10", "--basin-hops", "0"]
+              "--numeig", "25", "--starts", "1", "--max-iter", "10", "--basin-hops", "0", "--model", "harmonic"]
     assert main(["fit", *common, "--out", str(tmp_path / "harmonic")]) == 0
     assert "estimated discretization error" in capsys.readouterr().err
     summary = json.loads((tmp_path / "harmonic" / "summary.json").read_text())
