@@ -8,9 +8,9 @@ For (Lb, La, K) = (20,10,120), (30,15,256), (24,10,300), (60,30,500), on one thr
   both ways (``table.contract`` of B = V diag(c) Vᵀ, and ``grid_forms.weighted``); max relative differences.
 * ``cold``      — ``model.spectrum(a, K)`` (positivity check, assembly, Schur reduction, the driver chosen by
   :mod:`shspec.galerkin.eigen`), ``shspec.spectrum`` without the truncation estimate (``truncation_tol=None``) and
-  with it (the default: a second solve at Lb − 2), against the bare ``scipy.linalg.eigh(S, M,
-  subset_by_index=[0, K-1])`` on the same, pre-assembled M; and the LAPACK drivers on the reduced standard problem
-  (evr and evx subsets, evd full).
+  with it (the default: the basis estimate from the eigenvectors, no second solve), against the bare
+  ``scipy.linalg.eigh(S, M, subset_by_index=[0, K-1])`` on the same, pre-assembled M; and the LAPACK drivers on the
+  reduced standard problem (evr and evx subsets, evd full).
 * ``iteration`` — ``Objective.evaluate(x, jacobian=True)`` (spectrum, gradient, Jacobian: one LM trial point) cold,
   warm after a step of relative size 1e-10 (its start set to the spectrum at the previous point), and the path of the previous release (evr, table-kernel Jacobian and
   gradient; rebuilt here from the same pieces so that it runs in this process).

@@ -12,6 +12,10 @@ subset driver or its full divide and conquer, whichever is faster for the share 
 (:mod:`shspec.galerkin.eigen`), or a certified Rayleigh–Ritz step from the eigenvectors of a nearby ρ (a warm start).
 Then v_r = √λ D⁻¹ u is M-normalized.  The derivatives' quadratic forms v_iᵀ G_k v_i come from an exact quadrature
 (:mod:`shspec.galerkin.gridforms`).
+
+What the two band limits leave out, :func:`spectrum` estimates from these eigenvectors without a second solve: ρ's
+dropped degrees bound the first part, and the eigenfunctions' first-order content above Lb, one quadrature of ρ·v
+(:mod:`shspec.galerkin.truncation`), the second.
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
 from ..sphere.factor import ConformalFactor, as_factor
 from ..sphere.harmonics import check_degree
 from .model import HarmonicModel, SpectrumResult
-from .truncation import DEFAULT_TRUNCATION_TOL, TruncationEstimate, factor_truncation, tail_bound
+from .truncation import DEFAULT_TRUNCATION_TOL, TruncationEstimate, basis_truncation, factor_truncation, tail_bound
 
 __all__ = ["spectrum", "MAX_BASIS_DEGREE"]
 
@@ -49,9 +53,9 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
     table : GauntTable, optional
         Gaunt table to use (default: from the cache, built if missing and ``build``).
     truncation_tol : float or None
-        Estimate the truncation error of ρ's band limit and of the basis (one more solve at Lb − 2; see
-        :mod:`shspec.galerkin.truncation`) and emit a :class:`~shspec.errors.TruncationWarning` when the larger
-        exceeds this relative error (default 1e-6).  None: no estimate.
+        Estimate the truncation error of ρ's band limit and of the basis (from the eigenvectors at hand, a few per
+        cent of the solve; see :mod:`shspec.galerkin.truncation`) and emit a :class:`~shspec.errors.TruncationWarning`
+        when the larger exceeds this relative error (default 1e-6).  None: no estimate.
 
     Returns
     -------
@@ -87,14 +91,16 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
     result = model.spectrum(cut, k)
     if truncation_tol is None:
         return result
+    errors, decays = basis_truncation(result.eigenvalues, result.eigenvectors, cut.coefficients)
     estimate = TruncationEstimate(factor_truncation(factor.coefficients, model.lmax_factor, low.value),
-                                  _basis_truncation(model, cut, result),
+                                  float(errors[1:].max()) if errors.size > 1 else float("nan"),
                                   factor_truncation(factor.coefficients, model.lmax_factor, low.value,
                                                     extrapolate=True))
     if estimate.total > truncation_tol:
         warnings.warn(f"the spectrum of {factor.name} at Lb = {lmax}, La = {model.lmax_factor} may be off by "
                       f"{_percent(estimate.total)} (relative): "
-                      + _truncation_advice(estimate, factor, lmax, model.lmax_factor), TruncationWarning, stacklevel=2)
+                      + _truncation_advice(estimate, factor, lmax, model.lmax_factor, (errors, decays, truncation_tol)),
+                      TruncationWarning, stacklevel=2)
     return dataclasses.replace(result, truncation=estimate)
 
 
@@ -110,18 +116,33 @@ def _as_input_factor(rho) -> ConformalFactor:
                                    f"of numbers; got {type(rho).__name__}: {exc}") from None
 
 
-def _truncation_advice(estimate: TruncationEstimate, factor: ConformalFactor, lmax: int, la: int) -> str:
-    """Which band limit to raise, and to what, in words: the larger of the two estimated errors decides."""
-    if not estimate.basis >= estimate.factor:  # NaN basis (Lb < 3) counts as the smaller
+def _truncation_advice(estimate: TruncationEstimate, factor: ConformalFactor, lmax: int, la: int,
+                       basis: tuple[np.ndarray, np.ndarray, float]) -> str:
+    """Which band limit to raise, and to what, in words: the larger of the two estimated errors decides.
+
+    ``basis``: the per-eigenvalue errors and decays of :func:`basis_truncation`, and the tolerance exceeded.
+    """
+    if not estimate.basis >= estimate.factor:  # NaN basis (k = 1: no nonzero eigenvalue) counts as the smaller
         wanted = min(factor.lmax, 2 * lmax)
         more = (f"raise lmax_factor from {la} to {wanted}, rho's own degree" if wanted > la else
                 f"rho has degree {factor.lmax} but a basis of degree Lb couples degrees up to 2*Lb only: raise lmax "
                 f"to at least {-(-factor.lmax // 2)}")
         return (f"cutting rho at degree {la} drops a part that moves the eigenvalues by up to "
                 f"{_percent(estimate.factor)}; {more}")
-    return (f"the eigenvalues still change by {_percent(estimate.basis)} between the bases of degree {lmax - 2} and "
-            f"{lmax}: raise lmax above {lmax} until that change is below the tolerance (the change falls about "
-            "geometrically with the degree for a smooth rho)")
+    wanted_basis = _wanted_basis(lmax, *basis)
+    beyond = (f" (more than the largest basis, {MAX_BASIS_DEGREE}: ask for fewer eigenvalues or a smoother rho)"
+              if wanted_basis > MAX_BASIS_DEGREE else "")
+    return (f"the basis of degree {lmax} leaves out a part of the eigenfunctions that moves the eigenvalues by about "
+            f"{_percent(estimate.basis)} (estimated from what rho couples into the degrees {lmax + 1} and {lmax + 2}): "
+            f"raise lmax from {lmax} to about {wanted_basis}{beyond}")
+
+
+def _wanted_basis(lmax: int, errors: np.ndarray, decays: np.ndarray, tol: float) -> int:
+    """The basis degree at which every estimate of :func:`basis_truncation` above ``tol`` (one at least) would be
+    below it, each falling by its own decay per two degrees (a guide: the decay at Lb is not the asymptotic one)."""
+    over = errors > tol
+    steps = np.log(tol / errors[over]) / np.log(decays[over])
+    return lmax + 2 * int(np.ceil(steps.max()))
 
 
 def _percent(x: float) -> str:
@@ -130,20 +151,6 @@ def _percent(x: float) -> str:
     if not np.isfinite(x) or x >= 1:
         return ">= 100 %"
     return f"{100 * x:.2g} %" if x >= 1e-4 else f"{x:.1e}"
-
-
-def _basis_truncation(model: HarmonicModel, cut: ConformalFactor, result: SpectrumResult) -> float:
-    """max relative change of the eigenvalues from Lb − 2 to Lb (NaN when Lb − 2 < 1)."""
-    lb = model.lmax - 2
-    if lb < 1:
-        return float("nan")
-    smaller = HarmonicModel(lb, min(model.lmax_factor, 2 * lb), table=model.table, check_positive=False)
-    k = min(result.eigenvalues.size, smaller.nbasis)
-    if k < 2:
-        return float("nan")
-    coarse = smaller.eigenvalues(cut.truncated(smaller.lmax_factor), k)[1:]
-    fine = result.eigenvalues[1:k]
-    return float(np.max(np.abs(coarse - fine) / fine))
 
 
 def _truncation_cause(factor: ConformalFactor, la: int) -> str:

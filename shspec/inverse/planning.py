@@ -13,7 +13,7 @@ better determined (g = 630 at K = 289): at a ρ whose high degrees are zero, hig
 eigenvalues only weakly.
 
 The basis band limit Lb of the recommended K is the smallest at which those K eigenvalues of the reference have
-converged: their largest relative change from Lb − 2 to Lb (the basis estimate of :mod:`~shspec.galerkin.truncation`)
+converged: their largest relative change from Lb − 2 to Lb (a second solve per candidate, which a plan can afford)
 is at most ``basis_tol`` (default 1e-6, the tolerance at which :func:`~shspec.galerkin.solver.spectrum` warns).  The
 scan starts at (Lb + 1)² ≥ 1.5 K, the floor :func:`basis_degree_for`; the floor alone is not enough: for a random ρ
 of degree 10 (amplitude 0.2, seed 1) and K = 144 its Lb = 14 leaves the eigenvalues 6e-3 off, and at Lb = 24 they
