@@ -1,7 +1,7 @@
 """One way to run independent jobs: a :class:`concurrent.futures.Executor` that is serial, a process pool or Dask.
 
 :func:`make_executor` is what every parallel loop of shspec uses (many meshes in ``shspec mesh-spectrum``; it is
-meant for parallel fit starts too), so that a caller writes the loop once against the standard Executor interface
+and the starts of ``shspec fit``), so that a caller writes the loop once against the standard Executor interface
 (``submit``, ``map``, ``shutdown``, ``with``) and the user picks where it runs:
 
 * neither ``workers`` nor ``scheduler``: :class:`SerialExecutor`, every job run at ``submit`` in this process
@@ -15,7 +15,9 @@ meant for parallel fit starts too), so that a caller writes the loop once agains
   executor down closes the client, not the cluster.  An address where nothing listens fails at once, one that
   does not answer after :data:`CONNECT_TIMEOUT` seconds, both with a :class:`~shspec.errors.SchedulerError`.
 
-Jobs must be picklable: module-level functions with picklable arguments and results.
+Jobs must be picklable: module-level functions with picklable arguments and results.  :func:`stop_executor` shuts an
+executor down without waiting for the jobs still running (a fit that stopped at its first success no longer needs
+them); :func:`usable_cores` is the default size of a local pool.
 """
 
 from __future__ import annotations
@@ -28,7 +30,8 @@ from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from .checks import check_int
 from .errors import InvalidArgumentError, SchedulerError
 
-__all__ = ["SerialExecutor", "DaskExecutor", "make_executor", "THREAD_VARIABLES", "CONNECT_TIMEOUT"]
+__all__ = ["SerialExecutor", "DaskExecutor", "make_executor", "stop_executor", "usable_cores", "THREAD_VARIABLES",
+           "CONNECT_TIMEOUT"]
 
 #: Environment variables that cap the thread pools of BLAS/OpenMP libraries loaded after they are set.
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
@@ -179,3 +182,45 @@ def make_executor(workers: int | None = None, scheduler: str | None = None, *,
         return SerialExecutor()
     return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                initializer=_one_thread_per_worker)
+
+
+def usable_cores() -> int:
+    """The cores this process may run on: its CPU affinity where the system has one (a container's or a batch job's
+    share), else every core of the machine."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # macOS and Windows have no affinity call
+        return os.cpu_count() or 1
+
+
+def stop_executor(executor: Executor) -> None:
+    """Shut ``executor`` down without waiting for its jobs: the pending ones are cancelled, and the running ones end
+    too, their results lost.
+
+    A process pool's workers are terminated (a running job cannot be cancelled otherwise: a plain ``shutdown``
+    waits for it, and so does the interpreter at exit); a Dask executor cancels its futures and closes its
+    client (the cluster's workers drop the tasks); a :class:`SerialExecutor` has nothing running.  Use it on an
+    executor of your own, once its results are in: on a shared one it ends the other jobs too.
+    """
+    if isinstance(executor, ProcessPoolExecutor):
+        terminate = getattr(executor, "terminate_workers", None)  # Python >= 3.14
+        if terminate is not None:
+            terminate()
+            executor.shutdown(wait=True)
+            return
+        # earlier Pythons: the pool's own processes and manager thread (private, but stable since 3.9)
+        processes = list((getattr(executor, "_processes", None) or {}).values())
+        manager = getattr(executor, "_executor_manager_thread", None)
+        executor.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            if process.is_alive():
+                process.terminate()
+        for process in processes:
+            process.join()
+        if manager is not None:
+            manager.join()  # it sees the workers gone and ends
+        return
+    try:
+        executor.shutdown(wait=False, cancel_futures=True)
+    except TypeError:  # an Executor whose shutdown predates cancel_futures (distributed's own)
+        executor.shutdown(wait=False)

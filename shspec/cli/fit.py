@@ -37,7 +37,7 @@ from ..mesh.mesh_files import load_mesh
 from ..mesh.progress import mesh_progress
 from ..mesh.refine import eigenvalue_errors, trusted_numeig
 from ..pipeline.adaptive import AdaptiveOptions, adaptive_fit
-from ..parallel import make_executor
+from ..parallel import make_executor, stop_executor, usable_cores
 from ..spectral.topology import check_genus_zero
 from ..sphere.factor import ConformalFactor
 from ..sphere.harmonics import as_coefficients
@@ -150,9 +150,13 @@ def register(subparsers) -> None:
                    help="relative error of each eigenvalue (default: a file's error column, else exact)")
 
     runs = p.add_argument_group("runs")
-    runs.add_argument("--workers", type=int, default=None, metavar="N", help="run the starts on N local processes")
+    runs.add_argument("--workers", type=int, default=None, metavar="N",
+                      help="processes for the starts; 1: serial (default: one per start and core, 1 with "
+                      "--checkpoint-every)")
     runs.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                      help="run the starts on a Dask cluster (needs shspec[dask])")
+                      help="run the starts on a Dask cluster (shspec[dask])")
+    runs.add_argument("--all-starts", action="store_true",
+                      help="run every start (default: stop at the first success)")
     runs.add_argument("--checkpoint-every", type=int, default=d.checkpoint_every, metavar="N",
                       help="write DIR/checkpoint.h5 every N iterations (0: never)")
     runs.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.h5 (which must exist)")
@@ -373,6 +377,20 @@ def _expected_error(args, model, target: Target) -> float:
     return value
 
 
+def _where(args, options: FitOptions) -> tuple[int | None, str | None]:
+    """(workers, scheduler) of :func:`~shspec.parallel.make_executor` for the starts: --scheduler; else --workers;
+    else a local pool of one process per start and usable core, serial for one start, one core, or with
+    --checkpoint-every (a pool checkpoints finished starts only)."""
+    if args.scheduler is not None:
+        return args.workers, args.scheduler
+    if args.workers is not None:
+        if args.workers > 1 and options.checkpoint_every and not args.quiet:
+            print(f"note: on {args.workers} workers the checkpoint holds the finished starts only (--checkpoint-every "
+                  "checkpoints inside a start with --workers 1)", file=sys.stderr)
+        return args.workers, None
+    return (1 if options.checkpoint_every else max(1, min(options.starts, usable_cores()))), None
+
+
 def _fit(args) -> int:
     out: Path = args.out
     if out.exists() and not out.is_dir():
@@ -430,15 +448,18 @@ def _fit(args) -> int:
     options = FitOptions(optimizer=args.optimizer, weights=args.weights, reg=args.reg, area=args.area,
                          schedule=_schedule(args.schedule, target.numeig, args.lmax_factor, args.hop_degree,
                                             args.model != "mesh"),
-                         starts=args.starts,
+                         starts=args.starts, stop_at_success=not args.all_starts,
                          seed=args.seed, start_amplitude=args.amplitude, max_iter=args.max_iter,
                          basin_hops=args.basin_hops, hop_grid=args.hop_grid, hop_tries=args.hop_tries,
                          hop_extend=args.hop_extend,
                          stage_basis_tol=args.stage_basis_tol, checkpoint_every=args.checkpoint_every,
                          checkpoint_path=str(out / "checkpoint.h5") if args.checkpoint_every or args.resume else None,
                          progress=not args.quiet)
+    where = None if args.adaptive else _where(args, options)
     if not args.quiet:
-        print(f"fitting {target.name}: {target.numeig} eigenvalues, {model.describe()}, {options.starts} starts",
+        on = ("" if where is None or where == (1, None) else " on a Dask cluster" if where[1]
+              else f" on {where[0]} processes")
+        print(f"fitting {target.name}: {target.numeig} eigenvalues, {model.describe()}, {options.starts} starts{on}",
               file=sys.stderr)
     init = None if args.init is None else read_initial(args.init, model)
     if args.adaptive:
@@ -449,11 +470,12 @@ def _fit(args) -> int:
                                                         reg_kind=args.reg_kind, fit=options),
                                 log=None if args.quiet else (lambda msg: print(msg, file=sys.stderr)))
         result, extra["adaptive"] = adaptive.result, adaptive.to_dict()
-    elif args.workers is None and args.scheduler is None:
-        result = fit(target, model, options, resume=args.resume, init=init)
     else:
-        with make_executor(args.workers, args.scheduler) as executor:
+        executor = make_executor(*where)
+        try:
             result = fit(target, model, options, resume=args.resume, init=init, executor=executor)
+        finally:
+            stop_executor(executor)  # the starts a first success made unneeded may still run: not waited for
     write_result(result, out)
     if extra:
         path = out / "summary.json"
@@ -461,8 +483,10 @@ def _fit(args) -> int:
     ident = result.identifiability()
     print(("warning: " if ident.underdetermined else "") + ident.statement(), file=sys.stderr)
     best = result.best
+    stopped = "" if len(result.starts) == options.starts or result.interrupted else (
+        f" (the fit stops at its first success; --all-starts runs all {options.starts})")
     print(f"best start {best.index}: energy {best.energy:.3e}, max relative residual {best.relative_residual:.3e}; "
-          f"{result.success_count}/{len(result.starts)} starts succeeded ({success_definition(result)}); "
+          f"{result.success_count}/{len(result.starts)} starts succeeded ({success_definition(result)}){stopped}; "
           f"{result.seconds:.1f} s; wrote {out}")
     aligned = alignment_record(result)  # computed once, by the summary already
     if aligned and "relative_error" in aligned:  # the truth is known (--truth, or a target that carries it)

@@ -40,8 +40,9 @@ CHECKPOINT_FORMAT = 2
 #: eigenvalue, that still counts as the same target (round-off of how the target was computed).
 TARGET_RTOL = 1e-12
 
-#: Options that do not change the computation, left out of the fingerprint.
-_IGNORED = ("checkpoint_every", "checkpoint_path", "progress", "starts")
+#: Options that do not change the computation of a start, left out of the fingerprint (a checkpoint can be
+#: continued with more starts, or with every start after a fit that stopped at its first success).
+_IGNORED = ("checkpoint_every", "checkpoint_path", "progress", "starts", "stop_at_success")
 
 
 def options_dict(options: FitOptions) -> dict:

@@ -2,20 +2,24 @@
 
 A round start never leaves the even subspace (at an even ρ the gradient along odd degrees is exactly 0,
 :doc:`/theory`), so every start is random, with odd degrees.  Starts run one after the other (each already uses the machine's
-BLAS threads); each writes checkpoints if asked, and Ctrl-C ends the fit cleanly with the best state so far.
+BLAS threads), or on an executor; each writes checkpoints if asked, and Ctrl-C ends the fit cleanly with the best state
+so far.  By default the fit stops at its first successful start (:attr:`FitOptions.stop_at_success`): it keeps
+starts 0, ..., i for the lowest successful index i, whatever order the starts ended in.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
-from concurrent.futures import Executor, as_completed
+import math
+from concurrent.futures import FIRST_COMPLETED, Executor, wait
 from pathlib import Path
 
 import numpy as np
 
 from ..checks import check_options
 from ..errors import InvalidArgumentError
+from ..parallel import SerialExecutor
 from ..spectral_model import SpectralModel
 from .checkpoint import fingerprint, load_checkpoint, save_checkpoint
 from .driver import run_start
@@ -53,27 +57,65 @@ def distinct_solutions(starts: list, model: SpectralModel, tol: float) -> list:
     return reps
 
 
+def _first_success(finished: list) -> float:
+    """The lowest index of a successful start among ``finished``, or inf."""
+    return min((r.index for r in finished if r.success), default=math.inf)
+
+
 def _run_fresh_start(problem: FitProblem, index: int) -> StartResult:
     """One start from scratch (the task sent to an executor's worker): no checkpoints inside it."""
     rng = np.random.default_rng([problem.options.seed, index])
     return run_start(problem, StartProgress(index, 0, problem.initial(rng, index), None))
 
 
+def _continue_start(problem: FitProblem, progress: StartProgress) -> StartResult:
+    """A start a checkpoint left running, continued from its state (the task sent to an executor's worker)."""
+    return run_start(problem, progress)
+
+
 def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finished: list, checkpoint,
-                  display: FitDisplay) -> bool:
-    """Run the pending starts on ``executor``; finished starts are appended (and checkpointed) as they complete.
-    Returns True if Ctrl-C stopped it (the running starts are cancelled where the executor can)."""
-    futures = {executor.submit(_run_fresh_start, problem, i): i for i in pending}
+                  display: FitDisplay, current: StartProgress | None = None) -> bool:
+    """Run the pending starts (in order of their index; ``current``, a start a checkpoint left running, from its
+    state) on ``executor``; finished starts are appended (and checkpointed) as they complete.
+
+    With ``stop_at_success``, once start i succeeded the pending starts above i are cancelled and the running ones
+    no longer waited for; the starts below i are, one of them may succeed too.  Returns True if Ctrl-C stopped it
+    (the running starts are cancelled where the executor can)."""
+    stop = problem.options.stop_at_success
+    first = _first_success(finished)
+    futures = {}
+    for i in pending:
+        if current is not None and current.index == i:
+            futures[executor.submit(_continue_start, problem, current)] = i
+        else:
+            futures[executor.submit(_run_fresh_start, problem, i)] = i
+    waiting = set(futures)
     try:
-        for future in as_completed(futures):
-            finished.append(future.result())
-            if checkpoint is not None:
-                checkpoint(None)
-            display.start_done(finished[-1])
+        while waiting:
+            ended, waiting = wait(waiting, return_when=FIRST_COMPLETED)
+            for future in sorted(ended, key=futures.get):
+                finished.append(future.result())
+                if checkpoint is not None:
+                    checkpoint(None)
+                display.start_done(finished[-1])
+                if stop and finished[-1].success and finished[-1].index < first:
+                    first = finished[-1].index
+                    skipped = [f for f in waiting if futures[f] > first]
+                    if skipped:
+                        display.message(f"start {first} succeeded: the {len(skipped)} start(s) after it are skipped "
+                                        "(stop_at_success)")
+            if stop and first < math.inf:
+                for future in [f for f in waiting if futures[f] > first]:
+                    future.cancel()  # a running start of a process pool goes on there, unwaited for
+                    waiting.discard(future)
     except KeyboardInterrupt:
         for future in futures:
             future.cancel()
         return True
+    except BaseException:
+        for future in futures:
+            future.cancel()
+        raise
     return False
 
 
@@ -95,16 +137,25 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
         stay random.  With ``options.schedule`` None a fit from ``init`` is one stage at full resolution.
     executor : concurrent.futures.Executor, optional
         Run the starts on it (a process pool, or a Dask cluster's ``Client.get_executor()``; see
-        :func:`shspec.parallel.make_executor`): each start is independent and seeded by its index, so the results are
-        those of a serial run.  Finished starts are checkpointed as they arrive; a start still running when the
-        fit stops is run again from its beginning on resume.  Run at most one start per process at a time
-        (processes, or Dask workers with one thread each): threads are safe (:mod:`shspec.threads`), but they take
-        turns in pyshtools' grid routines and numba's parallel kernels.
+        :func:`shspec.parallel.make_executor`); None or a :class:`~shspec.parallel.SerialExecutor`: here, one after
+        the other.  Each start is independent and seeded by its index, so the results are those of a serial run,
+        with :attr:`~FitOptions.stop_at_success` too: when start i succeeds, the pending starts after it are
+        cancelled and the fit waits only for the running starts before it (one of them may succeed, and then it is
+        the answer); starts after the first success that ended anyway are left out of the result.  A start already
+        running in a process pool cannot be cancelled: the fit returns without its result, but it goes on in its
+        worker until it ends, and leaving a ``with ProcessPoolExecutor()`` block waits for it;
+        :func:`shspec.parallel.stop_executor` ends it at once (``shspec fit`` does).  Finished starts are
+        checkpointed as they arrive; a start still running when the fit stops is run again from its beginning on
+        resume (or from the state a serial run's checkpoint holds), as the checkpoints are written between starts
+        only.  Run at most one start per process at a time (processes, or Dask workers with one thread each):
+        threads are safe (:mod:`shspec.threads`), but they take turns in pyshtools' grid routines and numba's
+        parallel kernels.
 
     Returns
     -------
     FitResult
-        Every start, the distinct local solutions (best first), and whether Ctrl-C stopped the fit.  On Ctrl-C the
+        Every start run (with ``stop_at_success``: up to the first that succeeded), the distinct local solutions
+        (best first), and whether Ctrl-C stopped the fit.  On Ctrl-C the
         running start is reported with status "interrupted" and its best state, and a checkpoint is written if a
         path is set.
 
@@ -135,10 +186,17 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
             problem = FitProblem(model, target, options, init=init)
     done = {r.index for r in finished}
     display = FitDisplay(options.starts, len(problem.stages), options.progress, done=len(done))
+    if isinstance(executor, SerialExecutor):
+        executor = None  # the same starts, with the checkpoints inside them that only a run here writes
     try:
         interrupted = _run_starts(problem, executor, finished, current, done, fp, display)
     finally:
         display.close()
+    if options.stop_at_success:
+        # the starts a serial run would have run: those after the first success (finished on an executor, or in a
+        # checkpoint of a fit that ran every start) are left out
+        first = _first_success(finished)
+        finished = [r for r in finished if r.index <= first]
     if not finished:
         raise KeyboardInterrupt
     finished.sort(key=lambda r: r.index)
@@ -150,23 +208,30 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
 def _run_starts(problem: FitProblem, executor, finished: list, current, done: set, fp: str,
                 display: FitDisplay) -> bool:
     """Run the starts not in ``done`` (on ``executor``, or here one after the other, ``current`` first when a
-    checkpoint left one running), appending them to ``finished``; returns whether an interrupt stopped them."""
+    checkpoint left one running), appending them to ``finished``, up to the first success with ``stop_at_success``;
+    returns whether an interrupt stopped them."""
     options, target = problem.options, problem.target
 
     def checkpoint(progress):
         save_checkpoint(options.checkpoint_path, fp, finished, progress, target.eigenvalues)
 
+    def stopped(i: int) -> bool:  # a start before i succeeded, and the fit stops there
+        return options.stop_at_success and _first_success(finished) < i
+
     interrupted = False
     if executor is not None:
-        pending = [i for i in range(options.starts) if i not in done]
+        pending = [i for i in range(options.starts) if i not in done and not stopped(i)]
         interrupted = _run_parallel(problem, pending, executor, finished,
-                                    checkpoint if options.checkpoint_path else None, display)
+                                    checkpoint if options.checkpoint_path else None, display, current)
         if interrupted:
             display.message("interrupted: the finished starts are kept")
     else:
         for i in range(options.starts):
             if i in done:
                 continue
+            if stopped(i):
+                display.message(f"start {_first_success(finished)} succeeded: the fit stops there (stop_at_success)")
+                break
             # the whole step is guarded: an interrupt (Ctrl-C, SIGTERM) between two starts keeps the finished ones too
             try:
                 if current is None or current.index != i:

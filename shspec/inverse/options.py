@@ -50,6 +50,10 @@ class FitOptions:
         every stage on the model's own.  Default 1e-5.
     starts : int
         Number of random symmetry-broken starts (default 4).
+    stop_at_success : bool
+        Stop at the first start that succeeds (default): the fit keeps starts 0, ..., i for the lowest index i that
+        succeeds, the same starts and numbers whether they ran one after the other or on an executor
+        (:func:`~shspec.inverse.fit`).  False: run every start, e.g. to count the local solutions.
     seed : int
         Seed of every random choice: start i uses ``numpy.random.default_rng([seed, i])``.
     start_amplitude : float
@@ -111,6 +115,7 @@ class FitOptions:
     schedule: tuple | None = None
     stage_basis_tol: float | None = 1e-5
     starts: int = 4
+    stop_at_success: bool = True
     seed: int = 0
     start_amplitude: float = 0.2
     max_iter: int = 200
@@ -160,7 +165,7 @@ class FitOptions:
         check_int(self.hop_iter, "hop_iter", minimum=1)
         check_int(self.hop_tries, "hop_tries", minimum=1)
         check_int(self.hop_extend, "hop_extend", minimum=self.hop_iter)
-        for name in ("hop_grid", "orient_blocks"):
+        for name in ("stop_at_success", "hop_grid", "orient_blocks"):
             if not isinstance(getattr(self, name), bool):
                 raise InvalidArgumentError(f"{name} must be a bool, got {getattr(self, name)!r}")
         check_int(self.checkpoint_every, "checkpoint_every", minimum=0)

@@ -135,8 +135,9 @@ def test_sigterm_to_a_fit_without_checkpoints_writes_the_best_state(tmp_path):
     args = [a for a in TINY if a != "--quiet"]
     args[args.index("--starts") + 1] = "1000"
     args[args.index("--max-iter") + 1] = "1000"
-    proc = subprocess.Popen([sys.executable, "-m", "shspec", *args, "--out", str(out)], env=env,
-                            stderr=subprocess.PIPE, text=True)
+    # every start (a long fit), one after the other: on a process pool an interrupt keeps the finished starts only
+    proc = subprocess.Popen([sys.executable, "-m", "shspec", *args, "--all-starts", "--workers", "1", "--out", str(out)],
+                            env=env, stderr=subprocess.PIPE, text=True)
     # wait until the fit runs (its first line on stderr), then give it a moment inside the starts
     first = proc.stderr.readline()
     assert first.startswith("fitting"), first

@@ -146,7 +146,7 @@ def test_topology_of_a_mesh(tmp_path, capsys):
 def test_fit_refuses_a_torus_spectrum(tmp_path, capsys):
     torus = _flat_torus_file(tmp_path)
     args = ["fit", "--target", f"spectrum:{torus}", "--out", str(tmp_path / "fit"), "--quiet", "--lmax", "4",
-            "--lmax-factor", "2"]
+            "--lmax-factor", "2", "--workers", "1"]
     assert main(args) == 1
     err = capsys.readouterr().err
     assert "genus 1, not 0" in err and "Euler characteristic" in err

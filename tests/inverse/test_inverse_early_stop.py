@@ -1,0 +1,139 @@
+"""Starts in parallel and the stop at the first success: the same starts and numbers as a serial run, whatever
+order the starts end in, on resume too; every start with ``stop_at_success=False``."""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import replace
+from concurrent.futures import Executor, Future
+
+import numpy as np
+import pytest
+
+from shspec import HarmonicModel
+from shspec.inverse import FitOptions, fit, harmonic_target
+from shspec.inverse import optimize as optimize_module
+from shspec.inverse.checkpoint import fingerprint, save_checkpoint
+from shspec.sphere.random import random_centred_coefficients
+
+
+class OrderedExecutor(Executor):
+    """Runs its jobs in a thread, once ``count`` were submitted, in the order ``order`` gives their submission
+    numbers (e.g. highest first): a start of higher index can end first.  A job cancelled before its turn does not
+    run; ``ran`` lists the start indices that did."""
+
+    def __init__(self, count: int, order=reversed):
+        self.count, self.order, self.jobs, self.ran = count, order, [], []
+
+    def submit(self, fn, /, *args, **kwargs):
+        future = Future()
+        self.jobs.append((fn, args, future))
+        if len(self.jobs) == self.count:
+            threading.Thread(target=self._run, daemon=True).start()
+        return future
+
+    def _run(self):
+        for fn, args, future in self.order(list(self.jobs)):
+            if future.set_running_or_notify_cancel():
+                result = fn(*args)
+                self.ran.append(result.index)
+                future.set_result(result)
+
+
+@pytest.fixture(scope="module")
+def case():
+    """A degree-3 ρ from 20 eigenvalues whose starts (seed 5, 10 iterations) fail, succeed, succeed, fail."""
+    target = harmonic_target(random_centred_coefficients(2, 3, 0.3), 8, 20)
+    model = HarmonicModel(8, 3)
+    opts = FitOptions(starts=4, seed=5, max_iter=10, schedule=(), basin_hops=0)
+    serial = fit(target, model, opts)
+    every = fit(target, model, replace(opts, stop_at_success=False))
+    return target, model, opts, serial, every
+
+
+def _same(a, b):
+    assert [r.index for r in a.starts] == [r.index for r in b.starts] and a.solutions == b.solutions
+    for x, y in zip(a.starts, b.starts):
+        np.testing.assert_array_equal(x.params, y.params)
+        np.testing.assert_array_equal(x.history, y.history)
+        assert (x.energy, x.success, x.status) == (y.energy, y.success, y.status)
+
+
+def test_a_serial_fit_stops_at_its_first_success_and_all_starts_run_every_one(case):
+    _, _, opts, serial, every = case
+    assert opts.stop_at_success  # the default
+    assert [r.success for r in every.starts] == [False, True, True, False]  # the case is what it is meant to be
+    assert [r.index for r in serial.starts] == [0, 1] and serial.success_count == 1
+    for a, b in zip(serial.starts, every.starts):  # the starts it ran are those of the full run
+        np.testing.assert_array_equal(a.params, b.params)
+
+
+def test_starts_ending_in_reverse_order_give_the_serial_result(case):
+    target, model, opts, serial, every = case
+    backwards = OrderedExecutor(4)
+    _same(fit(target, model, opts, executor=backwards), serial)
+    # 3 and 2 ended before 1 succeeded: run, and left out of the result as the serial run never ran them
+    assert backwards.ran == [3, 2, 1, 0]
+    everything = OrderedExecutor(4)
+    _same(fit(target, model, replace(opts, stop_at_success=False), executor=everything), every)
+    assert sorted(everything.ran) == [0, 1, 2, 3]
+
+
+def test_the_pending_starts_after_a_success_are_cancelled(case):
+    target, model, opts, serial, _ = case
+    forwards = OrderedExecutor(4, order=iter)
+    _same(fit(target, model, opts, executor=forwards), serial)
+    assert forwards.ran == [0, 1]  # 2 and 3 never ran
+
+
+def test_a_resumed_fit_that_stops_at_its_first_success_equals_the_uninterrupted_one(case, tmp_path, monkeypatch):
+    target, model, opts, serial, every = case
+    # a checkpoint of a parallel run in which starts 0, 2 and 3 ended before 1: only 1 is left, and it succeeds
+    path = tmp_path / "ck.h5"
+    fp = fingerprint(opts, target.eigenvalues, model.describe())
+    save_checkpoint(path, fp, [every.starts[i] for i in (0, 2, 3)], None, target.eigenvalues)
+    checkpointed = replace(opts, checkpoint_path=str(path))
+    backwards = OrderedExecutor(1)
+    _same(fit(target, model, checkpointed, resume=True, executor=backwards), serial)
+    assert backwards.ran == [1]
+    # the same checkpoint continued here, one start after the other; and with every start
+    _same(fit(target, model, checkpointed, resume=True), serial)
+    _same(fit(target, model, replace(checkpointed, stop_at_success=False), resume=True), every)
+
+    # interrupted inside start 1 (its state checkpointed every 2 iterations), resumed on an executor: start 1
+    # continues there from its state and the fit ends as the uninterrupted one
+    path.unlink()
+    inside = replace(checkpointed, checkpoint_every=2)
+    cls = optimize_module._CLASSES["lm"]
+    original, calls = cls.step, {"n": 0}
+
+    def step(self):
+        calls["n"] += 1
+        if calls["n"] == serial.starts[0].iterations + 5:
+            raise KeyboardInterrupt
+        original(self)
+
+    monkeypatch.setattr(cls, "step", step)
+    partial = fit(target, model, inside)
+    monkeypatch.setattr(cls, "step", original)
+    assert partial.interrupted and [(r.index, r.status) for r in partial.starts][-1] == (1, "interrupted")
+    _same(fit(target, model, inside, resume=True, executor=OrderedExecutor(3)), serial)
+
+
+@pytest.mark.slow
+def test_a_process_pool_stops_at_the_first_success_and_its_workers_end(case):
+    from shspec.parallel import make_executor, stop_executor
+
+    target, model, opts, serial, _ = case
+    pool = make_executor(workers=2)
+    try:
+        pooled = fit(target, model, opts, executor=pool)
+        processes = list(pool._processes.values())
+    finally:
+        stop_executor(pool)
+    assert [r.index for r in pooled.starts] == [0, 1]
+    for a, b in zip(pooled.starts, serial.starts):
+        # one BLAS thread in the workers, several here: the same numbers up to the order of the roundings
+        np.testing.assert_allclose(a.params, b.params, rtol=1e-10, atol=1e-14)
+        assert a.success == b.success
+    assert not any(p.is_alive() for p in processes)
