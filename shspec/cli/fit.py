@@ -141,7 +141,7 @@ def register(subparsers) -> None:
     p.add_argument("--numeig", type=_numeig, default=None, metavar="K",
                    help="eigenvalues matched, with lambda_0: a number, or 'auto'/'all' for meshes (default: planned)")
     p.add_argument("--reg", type=float, default=None, metavar="R",
-                   help=f"regularization weight R (default: {MESH_REG:g} for --model mesh, else {d.reg:g})")
+                   help=f"penalty weight R (default: {MESH_REG:g} mesh fits, else {d.reg:g})")
     p.add_argument("--starts", type=int, default=d.starts, metavar="N", help="random starts")
     p.add_argument("--seed", type=int, default=d.seed, metavar="S", help="random seed")
     p.add_argument("--truth", type=Path, default=None, metavar="FILE",
