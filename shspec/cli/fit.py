@@ -23,7 +23,7 @@ from ..galerkin import HarmonicModel, LogHarmonicModel
 from .help_format import HelpFormatter
 from ..inverse.identifiability import identifiability
 from ..inverse.planning import plan_numeig
-from ..inverse.surface_plan import plan_surface_fit
+from ..inverse.surface_plan import TRUTH_DEGREE, default_numeig, plan_surface_fit
 from ..inverse.checkpoint import claim_checkpoint
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions
@@ -272,11 +272,6 @@ def _mesh_size(args) -> int:
     return load_mesh(arg).nvertices if scheme == "mesh" else 10 * 4 ** args.subdivisions + 2
 
 
-def _auto_cap(args) -> int:
-    """How many eigenvalues --numeig auto considers: min(n/4, 300) for the target mesh's n vertices."""
-    return max(2, min(_mesh_size(args) // 4, 300))
-
-
 def _plan(args) -> dict | None:
     """Fill in --numeig and --lmax where the user gave none (see --numeig); the plan's report, or None."""
     if args.numeig is not None:
@@ -308,10 +303,6 @@ MESH_FRACTION_VERTICES = 1500
 
 #: Default R of ``--model mesh``: the study's regularized fit (Section 3.2.2, cotan-squared penalty).
 MESH_REG = 0.05
-
-#: Degree of the harmonic truth (the cMCF factors' expansion) a planned mesh target is compared with.
-SURFACE_TRUTH_DEGREE = 16
-
 
 def _mesh_scheme(args) -> bool:
     return args.target.partition(":")[0] in ("star", "mesh")
@@ -346,7 +337,7 @@ def _surface_target(args) -> tuple[Target, dict]:
     """The mesh target with its errors, cut to the K of :func:`plan_surface_fit`, whose La and Lb go into ``args``;
     and the plan's report.  Raises BeyondBasisError where the basis cannot represent the target's factors."""
     with mesh_progress(not args.quiet):
-        target = parse_target(args.target, lmax=30, numeig=_auto_cap(args), lmax_factor=SURFACE_TRUTH_DEGREE,
+        target = parse_target(args.target, lmax=30, numeig=default_numeig(_mesh_size(args)), lmax_factor=TRUTH_DEGREE,
                               source=args.source, subdivisions=args.subdivisions)
         target = (target.with_noise(args.noise) if args.noise is not None
                   else _refined(target, subdivision_spectrum(target), args.quiet))
@@ -410,7 +401,7 @@ def _fit(args) -> int:
     auto = args.numeig == "auto"
     numeig = args.numeig
     if auto:
-        numeig = _auto_cap(args)
+        numeig = default_numeig(_mesh_size(args))  # what --numeig auto considers
     elif numeig == "all":
         numeig = _mesh_size(args) - 1
     if target is None:

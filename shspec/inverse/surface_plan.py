@@ -38,10 +38,21 @@ from ..mesh.cotan import vertex_areas
 from ..targets import Target
 from .identifiability import identifiability_by_numeig
 
-__all__ = ["SurfacePlan", "PlanRow", "log_floor", "plan_surface_fit", "DEFAULT_ACCURACY"]
+__all__ = ["SurfacePlan", "PlanRow", "log_floor", "plan_surface_fit", "default_numeig", "DEFAULT_ACCURACY",
+           "TRUTH_DEGREE"]
 
 #: Relative L2 error of ρ that a mesh target's plan aims for by default.
 DEFAULT_ACCURACY = 0.05
+
+#: Degree of the harmonic expansion of a mesh target's cMCF factors that its fits are aligned with (its truth).
+TRUTH_DEGREE = 16
+
+
+def default_numeig(nvertices: int) -> int:
+    """K₀ = min(n/4, 300): the eigenvalues a plan starts from on a mesh of n vertices (a 4-to-1 subdivision of it
+    still resolves them, and the solves stay seconds)."""
+    return max(2, min(nvertices // 4, 300))
+
 
 #: A candidate K is taken when its predicted error is within this factor of the best candidate's.
 _K_SLACK = 1.1

@@ -42,7 +42,7 @@ from ..galerkin.log_model import LogHarmonicModel
 from ..galerkin.truncation import basis_degree_for
 from ..inverse import FitOptions, align, fit
 from ..inverse.output import success_definition, surface_record
-from ..inverse.surface_plan import DEFAULT_ACCURACY, log_floor, plan_surface_fit
+from ..inverse.surface_plan import DEFAULT_ACCURACY, TRUTH_DEGREE, default_numeig, log_floor, plan_surface_fit
 from ..outputs import ensure_directory
 from ..mesh.bridge import fit_harmonic, mesh_band_limit
 from ..mesh.cmcf import CMCFResult, cmcf
@@ -63,10 +63,6 @@ SPECTRUM_LABELS = {"target_pl": "target mesh, subdivided once (cotan)", "cmcf_pl
                    "fit_harmonic": "fitted log rho (Galerkin)", "fit_embedded_pl": "re-embedded fitted factors"}
 
 
-#: Degree of the harmonic expansion of the cMCF factors that a fit is aligned with (the truth of the target).
-TRUTH_DEGREE = 16
-
-
 @dataclass(frozen=True)
 class ValidationOptions:
     """Options of :func:`validate_target`.
@@ -74,7 +70,8 @@ class ValidationOptions:
     Attributes
     ----------
     numeig : int or None
-        Eigenvalues K compared and fitted (λ₀ = 0 included); None: planned (from min(n/4, 300)).
+        Eigenvalues K compared and fitted (λ₀ = 0 included); None: planned (from
+        :func:`~shspec.inverse.surface_plan.default_numeig`).
     lmax, lmax_factor : int or None
         Harmonic basis degree Lb and log-ρ degree La; None: planned.
     accuracy : float
@@ -197,7 +194,7 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
     say(f"cMCF: {flow.iterations} steps, roundness {flow.roundness:.2e}, {times['cmcf']:.1f} s")
 
     t = time.perf_counter()
-    k0 = min(opt.numeig or max(2, min(mesh.nvertices // 4, 300)), mesh.nvertices - 1)
+    k0 = min(opt.numeig or default_numeig(mesh.nvertices), mesh.nvertices - 1)
     target = refined_target(mesh_target(mesh, 30, k0, TRUTH_DEGREE, source="pl", name=name, flow=flow))
     plan = None
     if opt.lmax_factor is None and opt.numeig is None:

@@ -95,3 +95,22 @@ def test_factors_spanning_decades_are_diagnosed_before_fitting(tmp_path, capsys)
         plan_surface_fit(Target("t", spectrum, sphere=sphere, factors=factors))
     with pytest.raises(InvalidArgumentError, match="no cMCF factors"):
         plan_surface_fit(Target("t", spectrum, errors=target.errors))
+
+
+@pytest.mark.slow
+def test_a_planned_fit_and_validation_of_a_small_star_mesh_compare_with_its_cmcf_factors(tmp_path, capsys):
+    from shspec.mesh.mesh_files import save_mesh
+
+    path = save_mesh(star_surface(3, 3, 0.3, 2), tmp_path / "star.obj")
+    assert main(["fit", "--target", f"mesh:{path}", "--starts", "1", "--quiet", "--out", str(tmp_path / "fit")]) == 0
+    summary = json.loads((tmp_path / "fit" / "summary.json").read_text())
+    plan, surface = summary["surface_plan"], summary["surface"]
+    assert summary["model"].startswith("log-harmonic") and summary["numeig"] == plan["numeig"]
+    assert summary["expected_error"] == plan["predicted"]
+    assert surface["floor"] == pytest.approx(plan["floor"], rel=1e-9)  # the same best expansion, two paths
+    assert surface["floor"] <= surface["error_bar"] and 0 < surface["factor_error"] < 1
+    assert 0.5 < surface["log_correlation"] <= 1
+    assert main(["validate", "--target", f"mesh:{path}", "--no-fit", "--out", str(tmp_path / "v")]) == 0
+    report = json.loads((tmp_path / "v" / "summary.json").read_text())
+    assert report["plan"]["lmax_factor"] == plan["lmax_factor"] and report["status"]["cmcf_harmonic"] == "ok"
+    assert "Hearing the shape" in (tmp_path / "v" / "report.md").read_text()
