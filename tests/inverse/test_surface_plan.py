@@ -114,3 +114,14 @@ def test_a_planned_fit_and_validation_of_a_small_star_mesh_compare_with_its_cmcf
     report = json.loads((tmp_path / "v" / "summary.json").read_text())
     assert report["plan"]["lmax_factor"] == plan["lmax_factor"] and report["status"]["cmcf_harmonic"] == "ok"
     assert "Hearing the shape" in (tmp_path / "v" / "report.md").read_text()
+
+
+@pytest.mark.slow
+def test_a_linear_harmonic_fit_of_spot_ends_with_a_result_whatever_its_positivity(tmp_path):
+    """The issue's case: spot_600 through linear rho of degree 4 aborted after its first stage on positivity; now every
+    fit ends with its best result written."""
+    out = tmp_path / "spot"
+    assert main(["fit", "--target", "mesh:spot_600", "--model", "harmonic", "--lmax", "10", "--lmax-factor", "4",
+                 "--numeig", "25", "--starts", "1", "--max-iter", "10", "--quiet", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(summary["starts"]) == 1 and np.isfinite(summary["energy"])

@@ -1,0 +1,125 @@
+"""Hearing real surfaces with the command line's defaults (issue 35): benchmarks/results/bench_surface.json.
+
+Cases (``--only NAME`` runs those whose name contains NAME; the others keep their last record):
+
+* ``star``: a smooth star-shaped surface the tests do not use: an icosphere of 10242 vertices pushed out radially by
+  r = exp(0.75 f), f a random smooth function of degree 3 (seed 7, degree-l part divided by l + 1, scaled to
+  max |f| = 1); its cMCF factors span about 0.70 … 4.2 (1:6).  ``shspec fit --target mesh:PATH --out D`` with
+  nothing else: wall time, the plan (La, K, Lb, predicted error), and the summary's comparison with the cMCF
+  factors (aligned relative error, log correlation, floor, error bar).
+* ``star-validate``: ``shspec validate --target mesh:PATH --out D`` on the same mesh: the re-embedded fit's
+  Hausdorff distance to the target (relative to the bounding-box diagonal), and that of the cMCF factors.
+* ``spot-mesh``: ``shspec fit --target mesh:spot_600 --model mesh --out D``: the log-factor correlation.
+* ``validate-spot``, ``validate-blub``: ``shspec validate`` on the full-resolution meshes: a complete report, or the
+  one-line diagnosis of the fit step.
+
+Every command runs in its own process as a user would start it (the runner's one-thread environment; the fit's
+starts take the machine's cores as processes).
+
+    python -m benchmarks run bench_surface [--only star]
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import RESULTS, load_average, machine_info, main_with_only  # noqa: E402
+
+from shspec.mesh.mesh_files import save_mesh  # noqa: E402
+from shspec.mesh.shapes import icosphere  # noqa: E402
+from shspec.mesh.triangle_mesh import TriangleMesh  # noqa: E402
+from shspec.sphere.evaluate import sample_harmonic  # noqa: E402
+
+NAME = "bench_surface.json"
+GOALS = {"star_wall_s": 900, "star_log_correlation": 0.98, "star_factor_error": 0.05,
+         "star_factor_error_over_predicted": 2.0, "star_error_bar_ratio": 3.0, "star_validate_hausdorff": 0.03,
+         "spot_mesh_log_correlation": 0.95}
+
+
+def star_mesh(path: Path) -> Path:
+    """The star-shaped test surface of the module notes, written to ``path``."""
+    ico = icosphere(5)
+    a = np.random.default_rng(7).standard_normal(16)
+    a[0] = 0.0
+    for l in range(4):
+        a[l * l:(l + 1) ** 2] /= 1 + l
+    f = sample_harmonic(a, ico.vertices)
+    r = np.exp(0.75 * f / np.abs(f).max())
+    return save_mesh(TriangleMesh(ico.vertices * r[:, None], ico.faces), path)
+
+
+def shspec(*args: str) -> dict:
+    """Run ``python -m shspec ARGS``; its exit code, wall time and the last lines of its stderr."""
+    t = time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "shspec", *args], capture_output=True, text=True)
+    lines = [x for x in done.stderr.replace("\r", "\n").splitlines() if x.strip() and "it/s]" not in x
+             and "vectors/s]" not in x]
+    return {"command": "shspec " + " ".join(args), "exit_code": done.returncode,
+            "wall_s": time.perf_counter() - t, "stderr_tail": lines[-8:]}
+
+
+def star(work: Path) -> dict:
+    mesh = star_mesh(work / "star10k.obj")
+    run = shspec("fit", "--target", f"mesh:{mesh}", "--out", str(work / "star"))
+    s = json.loads((work / "star" / "summary.json").read_text())
+    surface, plan = s["surface"], s["surface_plan"]
+    return {**run, "plan": {k: plan[k] for k in ("lmax_factor", "numeig", "lmax", "predicted", "floor", "feasible")},
+            "successes": s["successes"], "starts_run": len(s["starts"]), "surface": surface,
+            "factor_error_over_predicted": surface["factor_error"] / plan["predicted"],
+            "error_bar_over_measured": surface["error_bar"] / surface["factor_error"]}
+
+
+def star_validate(work: Path) -> dict:
+    mesh = star_mesh(work / "star10k.obj")
+    run = shspec("validate", "--target", f"mesh:{mesh}", "--out", str(work / "validate"))
+    s = json.loads((work / "validate" / "summary.json").read_text())
+    return {**run, "status_fit": s["status"]["fit"], "hausdorff_cmcf": s["hausdorff_relative"],
+            "hausdorff_fit": (s["fit_embedding"] or {}).get("hausdorff_relative"), "fit": s["fit"]}
+
+
+def spot_mesh(work: Path) -> dict:
+    run = shspec("fit", "--target", "mesh:spot_600", "--model", "mesh", "--quiet", "--out", str(work / "spot"))
+    s = json.loads((work / "spot" / "summary.json").read_text())
+    return {**run, "numeig": s["numeig"], "log_correlation": s["log_correlation"], "factor_error": s["factor_error"],
+            "successes": s["successes"]}
+
+
+def validate_shipped(name: str):
+    def case(work: Path) -> dict:
+        run = shspec("validate", "--target", f"mesh:{name}", "--out", str(work / name))
+        s = json.loads((work / name / "summary.json").read_text())
+        return {**run, "status": s["status"], "hausdorff_cmcf": s["hausdorff_relative"]}
+    return case
+
+
+CASES = {"star": star, "star-validate": star_validate, "spot-mesh": spot_mesh,
+         "validate-spot": validate_shipped("spot"), "validate-blub": validate_shipped("blub")}
+
+
+def run(only: str | None) -> dict:
+    path = RESULTS / NAME
+    old = json.loads(path.read_text()) if path.exists() else {}
+    cases = dict(old.get("cases", {}))
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, case in CASES.items():
+            if only is not None and only not in name:
+                continue
+            work = Path(tmp) / name
+            work.mkdir()
+            before = load_average()
+            cases[name] = {**case(work), "load_before": before, "load_after": load_average(),
+                           "machine": machine_info()}
+            print(name, json.dumps({k: v for k, v in cases[name].items() if k != "machine"})[:400], flush=True)
+    return {"benchmark": "bench_surface", "goals": GOALS, "cases": cases}
+
+
+if __name__ == "__main__":
+    main_with_only(__doc__, NAME, run)
