@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 import shspec.cli.fit as fit_cli
-from shspec.cli import main
+from shspec.cli import build_parser, main
 from shspec.galerkin import HarmonicModel
+from shspec.inverse import FitOptions
 from shspec.parallel import SerialExecutor, usable_cores
 from shspec.sphere.random import random_centred_coefficients
 
@@ -30,24 +31,34 @@ def pools(monkeypatch):
     return asked
 
 
+def _spectrum(tmp_path, degree: int, numeig: int):
+    """A spectrum file of a random rho (a target without a truth: no alignment to wait for)."""
+    path = tmp_path / f"spectrum_{degree}_{numeig}.txt"
+    np.savetxt(path, HarmonicModel(8, degree).eigenvalues(random_centred_coefficients(1, degree, 0.3), numeig))
+    return path
+
+
 def test_the_starts_run_on_one_process_per_start_and_core_by_default(pools, tmp_path):
-    tiny = ["fit", "--target", "blob", "--numeig", "10", "--lmax", "8", "--lmax-factor", "4", "--max-iter", "1",
-            "--basin-hops", "0", "--schedule", "none", "--quiet"]
-    cases = [(["--starts", "4"], 3), (["--starts", "2"], 2), (["--starts", "1"], 1),
-             (["--starts", "4", "--workers", "1"], 1), (["--starts", "2", "--workers", "5"], 5),
-             (["--starts", "4", "--checkpoint-every", "5"], 1)]  # checkpoints inside a start: serial
-    for n, (extra, workers) in enumerate(cases):
-        assert main([*tiny, *extra, "--out", str(tmp_path / str(n))]) == 0
-        assert pools[-1] == (workers, None), extra
+    tiny = ["fit", "--target", f"spectrum:{_spectrum(tmp_path, 4, 10)}", "--numeig", "10", "--lmax", "8",
+            "--lmax-factor", "4", "--max-iter", "1", "--basin-hops", "0", "--schedule", "none", "--quiet"]
+    assert main([*tiny, "--starts", "4", "--out", str(tmp_path / "default")]) == 0
+    assert pools == [(3, None)]  # min(4 starts, 3 cores)
+    # checkpoints inside a start need the serial run
+    assert main([*tiny, "--starts", "4", "--checkpoint-every", "5", "--out", str(tmp_path / "checkpointed")]) == 0
+    assert pools[-1] == (1, None)
+    for extra, where in ((["--starts", "2"], (2, None)), (["--starts", "1"], (1, None)),
+                         (["--starts", "4", "--workers", "1"], (1, None)),
+                         (["--starts", "2", "--workers", "5"], (5, None)),
+                         (["--scheduler", "tcp://h:1"], (None, "tcp://h:1"))):
+        args = build_parser().parse_args([*tiny, *extra, "--out", str(tmp_path / "x")])
+        assert fit_cli._where(args, FitOptions(starts=args.starts)) == where, extra
     assert 1 <= usable_cores()
 
 
 def test_a_fit_stops_at_its_first_success_unless_all_starts(pools, tmp_path, capsys):
     # a degree-2 rho from 12 eigenvalues: every start succeeds within 10 iterations
-    spectrum = tmp_path / "spectrum.txt"
-    np.savetxt(spectrum, HarmonicModel(8, 2).eigenvalues(random_centred_coefficients(1, 2, 0.3), 12))
-    args = ["fit", "--target", f"spectrum:{spectrum}", "--lmax", "8", "--lmax-factor", "2", "--numeig", "12",
-            "--starts", "3", "--max-iter", "10", "--schedule", "none", "--basin-hops", "0", "--quiet"]
+    args = ["fit", "--target", f"spectrum:{_spectrum(tmp_path, 2, 12)}", "--lmax", "8", "--lmax-factor", "2",
+            "--numeig", "12", "--starts", "3", "--max-iter", "10", "--schedule", "none", "--basin-hops", "0", "--quiet"]
     assert main([*args, "--out", str(tmp_path / "first")]) == 0
     first = json.loads((tmp_path / "first" / "summary.json").read_text())
     assert [s["index"] for s in first["starts"]] == [0] and first["options"]["stop_at_success"] is True
