@@ -122,6 +122,6 @@ def test_a_linear_harmonic_fit_of_spot_ends_with_a_result_whatever_its_positivit
     fit ends with its best result written."""
     out = tmp_path / "spot"
     assert main(["fit", "--target", "mesh:spot_600", "--model", "harmonic", "--lmax", "10", "--lmax-factor", "4",
-                 "--numeig", "25", "--starts", "1", "--max-iter", "10", "--quiet", "--out", str(out)]) == 0
+                 "--numeig", "25", "--starts", "1", "--max-iter", "10", "--basin-hops", "0", "--quiet", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert len(summary["starts"]) == 1 and np.isfinite(summary["energy"])
