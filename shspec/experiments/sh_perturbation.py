@@ -170,12 +170,16 @@ def _shape_summary(shape: str, rows: list, largest_p: float) -> str:
                  f"{_span([r['lmax_factor'] for r in fitted])} from K = {_span([r['numeig'] for r in fitted])} "
                  f"eigenvalues on Lb = {_span([r['lmax'] for r in fitted])}; the harmonic fit's factor error was "
                  f"{_range([r['factor_error'] for r in fitted])} (floor {_range([r['floor'] for r in fitted])}, "
-                 f"predicted {_range([r['predicted'] for r in fitted])}; {sum(r['fit_success'] for r in fitted)} of "
-                 f"{len(fitted)} fits reached the target within its errors), the PL fit's "
-                 f"{_range([r['pl_factor_error'] for r in fitted])}; re-embedded, the harmonic fit lies at a Hausdorff "
-                 f"distance of {_range([r['hausdorff_fit'] for r in fitted])}, the PL fit at "
+                 f"predicted {_range([r['predicted'] for r in fitted])}, within the accuracy asked at "
+                 f"{sum(r['plan'] == 'feasible' for r in fitted)} of {len(fitted)} p; "
+                 f"{sum(r['fit_success'] for r in fitted)} of {len(fitted)} fits reached the target within its "
+                 f"errors; correlation of log rho with log c {_range([r['log_correlation'] for r in fitted])}), the PL "
+                 f"fit's {_range([r['pl_factor_error'] for r in fitted])} (log correlation "
+                 f"{_range([r['pl_log_correlation'] for r in fitted])}); re-embedded, the harmonic fit lies at a "
+                 f"Hausdorff distance of {_range([r['hausdorff_fit'] for r in fitted])}, the PL fit at "
                  f"{_range([r['hausdorff_pl'] for r in fitted])} and the cMCF factors themselves at "
-                 f"{_range([r['hausdorff_cmcf'] for r in fitted])}")
+                 f"{_range([r['hausdorff_cmcf'] for r in fitted])} (their embedding flagged unsuccessful at "
+                 f"{sum(not r['cmcf_embedding_success'] for r in fitted)} of {len(fitted)} p)")
     beyond = [r for r in rows if r["plan"] == "beyond basis"]
     if beyond:
         r = beyond[0]
@@ -217,7 +221,9 @@ def _figure(rows: list, fixed: list, out) -> None:
     for ax, lines in ((axes[0], _ERROR_LINES), (axes[1], _DISTANCE_LINES)):
         handles = [Line2D([], [], color="k", ls=style.lstrip("osx^") or "", marker=style[0] if style[0] in "osx^"
                           else "", label=label) for _, style, label in lines]
-        ax.legend(handles=handles + (extra_handles if ax is axes[0] else []) + shape_handles, fontsize=8)
+        # the errors rise to the upper right, the fits beyond the plan sit low in the middle: lower right is free
+        ax.legend(handles=handles + (extra_handles if ax is axes[0] else []) + shape_handles, fontsize=8,
+                  loc="lower right" if ax is axes[0] else "upper left")
         ax.set_xlabel("perturbation p")
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_yscale("log")
