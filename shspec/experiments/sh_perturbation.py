@@ -151,9 +151,9 @@ def _row(l, m, p, mesh, flow, cfg, eopt) -> tuple[dict, dict | None]:
 
 
 def _range(values) -> str:
-    """The finite values of a sweep as 'first to last', or the one value, or 'none'."""
+    """The finite values of a sweep as 'smallest to largest', or the one value, or 'none'."""
     v = [x for x in values if np.isfinite(x)]
-    return "none" if not v else f"{v[0]:.2g}" if len(v) == 1 else f"{v[0]:.2g} to {v[-1]:.2g}"
+    return "none" if not v else f"{v[0]:.2g}" if len(v) == 1 else f"{min(v):.2g} to {max(v):.2g}"
 
 
 def _span(values) -> str:
