@@ -200,7 +200,7 @@ _DISTANCE_LINES = (("hausdorff_fit", "o-", "harmonic fit"), ("hausdorff_pl", "s-
 def _figure(rows: list, fixed: list, out) -> None:
     from matplotlib.lines import Line2D
 
-    fig, axes = figure(1, 2, width=13)
+    fig, axes = figure(1, 2, width=13, height=5.4)
     shapes = list(dict.fromkeys(r["shape"] for r in rows))
     for i, shape in enumerate(shapes):
         sub = [r for r in rows if r["shape"] == shape]
@@ -221,9 +221,9 @@ def _figure(rows: list, fixed: list, out) -> None:
     for ax, lines in ((axes[0], _ERROR_LINES), (axes[1], _DISTANCE_LINES)):
         handles = [Line2D([], [], color="k", ls=style.lstrip("osx^") or "", marker=style[0] if style[0] in "osx^"
                           else "", label=label) for _, style, label in lines]
-        # the errors rise to the upper right, the fits beyond the plan sit low in the middle: lower right is free
-        ax.legend(handles=handles + (extra_handles if ax is axes[0] else []) + shape_handles, fontsize=8,
-                  loc="lower right" if ax is axes[0] else "upper left")
+        # below the panel: inside, it hides points wherever the sweep puts them
+        ax.legend(handles=handles + (extra_handles if ax is axes[0] else []) + shape_handles, fontsize=8, ncol=3,
+                  loc="upper center", bbox_to_anchor=(0.5, -0.14))
         ax.set_xlabel("perturbation p")
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_yscale("log")
