@@ -46,8 +46,11 @@ from .model import (HarmonicModel, SpectrumResult, block_moves, laplacian_regula
 
 __all__ = ["LogHarmonicModel", "LogSpectrumResult", "log_expansion"]
 
-#: exp overflows above this; a trial point of the optimizer beyond it is rejected, not evaluated.
-_MAX_LOG = 700.0
+#: The largest |log rho| on the grid that is evaluated; a trial point of the optimizer beyond it is rejected.  Not
+#: exp's overflow (709): pyshtools' GLQ analysis (SHExpandGLQ, 4.14) of the mass returns NaN for grid values
+#: from about 1e30 = e^69 (measured: a single node at e^70 fails at Lb = 3, e^75 at Lb = 12), and a Levenberg-
+#: Marquardt step on a near-singular Jacobian proposes such points (log rho 83 on a star target's fit).
+_MAX_LOG = 60.0
 
 
 @dataclass(frozen=True)
@@ -124,7 +127,8 @@ class LogHarmonicModel(SpectralModel):
         values = evaluate_on_grid(self._u(params), self.grid)
         top = float(np.max(np.abs(values)))
         if not top <= _MAX_LOG:
-            raise NotPositiveError(f"log rho reaches {top:.3g} in magnitude: exp of it leaves double precision")
+            raise NotPositiveError(f"log rho reaches {top:.3g} in magnitude: exp of it leaves the range the grid "
+                                   f"analysis of the mass can expand (|log rho| <= {_MAX_LOG:g})")
         return np.exp(values)
 
     def mass_coefficients(self, params) -> np.ndarray:

@@ -173,3 +173,53 @@ def test_pl_basin_converges_quadratically_next_to_the_truth(runs):
     # a step of 1e-2 along the null space, back to the spectrum: off the truth to second order (1.9e-4 measured)
     assert walk["converged"] == "True" and float(walk["relative_residual"]) <= 1e-12
     assert 1e-3 * 1e-2 ** 2 < float(walk["log_rms_determined"]) < 0.1 * 1e-2
+
+
+def test_sh_perturbation_sweeps_p_until_the_harmonic_basis_fails(runs):
+    folder = runs / "sh-perturbation"
+    config = json.loads((folder / "config.json").read_text())
+    numbers = json.loads((folder / "meta.json").read_text())["numbers"]
+    with open(folder / "sh_perturbation.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    shapes = [f"Y_{l}^{m}" for l, m in config["shapes"]]
+    assert list(dict.fromkeys(r["shape"] for r in rows)) == shapes == list(numbers)
+    for shape in shapes:
+        sweep = [r for r in rows if r["shape"] == shape]
+        # in p order, ending at the first p the plan finds beyond the basis (the quick preset reaches one)
+        assert [float(r["p"]) for r in sweep] == config["p_values"][:len(sweep)]
+        assert [r["plan"] == "beyond basis" for r in sweep] == [False] * (len(sweep) - 1) + [True]
+        assert numbers[shape]["beyond_basis_p"] == float(sweep[-1]["p"])
+        for r in sweep:
+            floor, predicted = float(r["floor"]), float(r["predicted"])
+            assert 0 < floor <= predicted <= 1  # predicted = hypot(floor, the target's errors' bar)
+            # the PL fit and the re-embeddings ran on every row, the last one too
+            assert int(r["pl_numeig"]) == round(config["pl_numeig_fraction"] * int(r["vertices"]))
+            assert 0 < float(r["pl_factor_error"]) < 1
+            assert 0 < float(r["hausdorff_pl"]) < 0.5 and 0 < float(r["hausdorff_cmcf"]) < 0.5
+        for r in sweep[:-1]:
+            # fitted, and no closer to the cMCF factors than the best log expansion of the planned degree allows
+            # (the alignment's Möbius map leaves a little slack)
+            error, floor = float(r["factor_error"]), float(r["floor"])
+            assert r["fit_status"] and not r["fit_status"].startswith("failed")
+            assert 0.8 * floor <= error < 1 and 0 < float(r["hausdorff_fit"]) < 0.5
+            assert float(r["error_bar"]) >= 0.99 * floor  # hypot(floor, the target's errors' bar)
+        last = sweep[-1]
+        assert last["fit_status"].startswith("not attempted") and last["factor_error"] == "nan"
+        assert float(last["best_floor_analysed"]) > config["accuracy"]  # what "beyond the basis" means
+        assert "cannot reach" in numbers[shape]["diagnosis"][-1]
+    with open(folder / "sh_perturbation_fixed_degree.csv") as fh:
+        fixed = list(csv.DictReader(fh))
+    # the fit of the fixed degree ran where asked, from every eigenvalue, and finished (it crashed on an overflow once)
+    assert [(r["shape"], float(r["p"])) for r in fixed] == [(s, p) for s in shapes for p in config["fixed_p"]]
+    for r in fixed:
+        assert int(r["lmax_factor"]) == config["fixed_degree"] and int(r["numeig"]) == config["numeig"]
+        assert not r["fit_status"].startswith("failed")
+        assert 0.8 * float(r["floor"]) <= float(r["factor_error"]) < 1
+
+
+def test_sh_perturbation_refuses_a_sweep_it_cannot_end(tmp_path):
+    for text, match in (("p_values = [1.0, 0.5]", "increasing"), ("shapes = [[3, 3, 1]]", r"\[l, m\] pairs")):
+        bad = tmp_path / "sh.toml"
+        bad.write_text(text + "\n")
+        with pytest.raises(InvalidArgumentError, match=match):
+            run_experiment("sh-perturbation", tmp_path / "sh", config_path=bad, quick=True, progress=False)
