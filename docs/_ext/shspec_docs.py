@@ -63,7 +63,8 @@ def _fmt(x) -> str:
 
 
 def _cell(text: str) -> str:
-    return text.replace("|", "/").replace("*", r"\*").replace("`", "'")
+    # a word ending in "_" (libscipy_openblas64_) is a reference to reStructuredText
+    return text.replace("|", "/").replace("*", r"\*").replace("`", "'").replace("_", r"\_")
 
 
 def write_benchmarks(out: Path) -> None:
