@@ -189,18 +189,18 @@ def _floor_degree(sphere, c, accuracy: float) -> int | None:
     return hi
 
 
-def _basis(u: np.ndarray, la: int, tol: np.ndarray) -> int:
+def _basis(u: np.ndarray, la: int, tol: np.ndarray) -> tuple[int, np.ndarray]:
     """The smallest Lb >= :func:`basis_degree_for` on which each of the first K eigenvalues of exp(u) agrees with
-    Lb + 2 to its own relative tolerance tol (K − 1,)."""
+    Lb + 2 to its own relative tolerance tol (K − 1,), and those K eigenvalues on Lb."""
     numeig = tol.size + 1
     lb = basis_degree_for(numeig, la)
-    previous = LogHarmonicModel(lb, la).eigenvalues(u, numeig)[1:]
+    previous = LogHarmonicModel(lb, la).eigenvalues(u, numeig)
     while lb + 2 <= MAX_BASIS_DEGREE:
-        ev = LogHarmonicModel(lb + 2, la).eigenvalues(u, numeig)[1:]
-        if np.all(np.abs(previous / ev - 1) <= tol):
-            return lb
+        ev = LogHarmonicModel(lb + 2, la).eigenvalues(u, numeig)
+        if np.all(np.abs(previous[1:] / ev[1:] - 1) <= tol):
+            return lb, previous
         previous, lb = ev, lb + 2
-    return lb
+    return lb, previous
 
 
 def plan_surface_fit(target: Target, *, accuracy: float = DEFAULT_ACCURACY, candidates=None,
@@ -260,8 +260,8 @@ def plan_surface_fit(target: Target, *, accuracy: float = DEFAULT_ACCURACY, cand
     scaled = u.copy()
     model = LogHarmonicModel(basis_degree_for(pick.numeig, pick.lmax_factor), pick.lmax_factor)
     scaled[0] += np.sqrt(4 * np.pi) * np.log(target.area_estimate() / model.area(u))
-    lb = _basis(scaled, pick.lmax_factor, 0.1 * noise[1:pick.numeig])
-    misfit = LogHarmonicModel(lb, pick.lmax_factor).eigenvalues(scaled, pick.numeig) - target.eigenvalues[:pick.numeig]
+    lb, reference_eigenvalues = _basis(scaled, pick.lmax_factor, 0.1 * noise[1:pick.numeig])
+    misfit = reference_eigenvalues - target.eigenvalues[:pick.numeig]
     fit_errors = np.hypot(target.errors[:pick.numeig], misfit)
     fit_errors[0] = 0.0
     return SurfacePlan(lmax_factor=pick.lmax_factor, numeig=pick.numeig, lmax=lb, predicted=pick.predicted,
