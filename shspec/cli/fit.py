@@ -31,7 +31,7 @@ from ..inverse.output import alignment_record, success_definition, write_result
 from ..inverse.schedule import (DEFAULT_STAGE_MAX_ITER, default_hop_degree, degree_ramp, numeig_ramp,
                                parse_schedule)
 from ..targets import (TARGET_SOURCES, Target, check_target_text, parse_target, read_spectrum, refined_target,
-                       subdivision_changes, subdivision_spectrum)
+                       refinement_levels, subdivision_changes, subdivision_spectra)
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.mesh_files import load_mesh
 from ..mesh.progress import mesh_progress
@@ -323,14 +323,22 @@ def _resolve_defaults(args) -> bool:
 
 
 def _refined(target: Target, fine, quiet: bool) -> Target:
-    """:func:`refined_target`, said on the console."""
+    """:func:`refined_target` of the subdivisions' spectra ``fine`` (levels, k), said on the console."""
     refined = refined_target(target, fine)
     if not quiet:
         rel = refined.errors[1:] / refined.eigenvalues[1:]
-        print(f"the mesh target's eigenvalues are those of its 4-to-1 subdivision, with an estimated discretization "
-              f"error of {rel.min():.1g} to {rel.max():.1g} (relative, Richardson): the fit weighs and stops by it",
-              file=sys.stderr)
+        how = ("those of its 4-to-1 subdivision" if len(fine) == 1 else
+               f"extrapolated from {len(fine)} 4-to-1 subdivisions (Richardson)")
+        print(f"the mesh target's eigenvalues are {how}, with an estimated discretization error of {rel.min():.1g} "
+              f"to {rel.max():.1g} (relative): the fit weighs and stops by it", file=sys.stderr)
     return refined
+
+
+def _subdivision_spectra(target: Target, quiet: bool) -> np.ndarray:
+    """The spectra (levels, k) of a mesh target's subdivisions, :func:`refinement_levels` of them."""
+    mesh = target.mesh if target.source == "pl" else target.sphere
+    with mesh_progress(not quiet):
+        return subdivision_spectra(target, refinement_levels(mesh.nvertices))
 
 
 def _surface_target(args) -> tuple[Target, dict]:
@@ -339,8 +347,8 @@ def _surface_target(args) -> tuple[Target, dict]:
     with mesh_progress(not args.quiet):
         target = parse_target(args.target, lmax=30, numeig=default_numeig(_mesh_size(args)), lmax_factor=TRUTH_DEGREE,
                               source=args.source, subdivisions=args.subdivisions)
-        target = (target.with_noise(args.noise) if args.noise is not None
-                  else _refined(target, subdivision_spectrum(target), args.quiet))
+    target = (target.with_noise(args.noise) if args.noise is not None
+              else _refined(target, _subdivision_spectra(target, args.quiet), args.quiet))
     plan = plan_surface_fit(target)
     if not args.quiet:
         print(plan.statement(), file=sys.stderr)
@@ -417,9 +425,8 @@ def _fit(args) -> int:
         target = target.with_noise(args.noise)
     elif target.source in ("pl", "cmcf") and args.model != "mesh":
         # a harmonic model hears the mesh's own discretization error too: fit to it, not below it
-        with mesh_progress(not args.quiet):
-            fine = subdivision_spectrum(target)
-        changes = subdivision_changes(target, fine)
+        fine = _subdivision_spectra(target, args.quiet)
+        changes = subdivision_changes(target, fine[0])
         target = _refined(target, fine, args.quiet)
     if planned is not None and target.numeig < planned["numeig"]:
         print(f"warning: the target has only {target.numeig} eigenvalues; the plan asked for {planned['numeig']}",

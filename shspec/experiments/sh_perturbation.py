@@ -4,7 +4,7 @@ planned log-ρ fit, beside the PL fit, against the perturbation p.
 For each shape (l, m) (the study's |Y_3^3| and |Y_3^2| stars) and each p of the sweep, the target is the cotan
 spectrum of the star (icosphere of ``subdivisions``), as ``shspec fit --target star:...`` takes it:
 
-* the harmonic fit: the spectrum refined by one subdivision with its Richardson error
+* the harmonic fit: the spectrum Richardson-extrapolated from two subdivisions, with its error
   (:func:`~shspec.targets.refined_target`), the plan of a log-ρ fit from the first ``numeig`` eigenvalues
   (:func:`~shspec.inverse.surface_plan.plan_surface_fit`: La, K and Lb from the floor of the basis against the
   target's errors, the predicted error), and the fit (:class:`~shspec.galerkin.log_model.LogHarmonicModel`, held to
@@ -255,7 +255,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
     _figure(rows, fixed, out)
     blind = [tuple(map(int, r["candidates_without_error_bar"].split("/"))) for r in rows]
     summary = (f"Star surfaces r = 1 + p|Y_l^m| ({rows[0]['vertices']} vertices) heard by a log-rho fit planned from "
-               f"the first {cfg['numeig']} cotan eigenvalues refined by one subdivision (accuracy asked "
+               f"the first {cfg['numeig']} cotan eigenvalues extrapolated from two subdivisions (accuracy asked "
                f"{cfg['accuracy']:g}), beside the PL fit with the study's settings (log factors, R = "
                f"{cfg['pl_reg']:g}, {cfg['pl_numeig_fraction']:.0%} of the eigenvalues). "
                + " ".join(_shape_summary(s, [r for r in rows if r["shape"] == s], cfg["p_values"][-1])

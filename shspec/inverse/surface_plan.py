@@ -10,11 +10,18 @@ are measured here before any fit:
   the error bar of :func:`~shspec.inverse.identifiability.identifiability` at that best expansion, in the relative
   L2 error of ρ (:meth:`LogHarmonicModel.error_root <shspec.galerkin.log_model.LogHarmonicModel.error_root>`).
 
-The floor falls with La and the noise grows with it, so the plan takes the La that minimizes the predicted error
-√(f² + e²), and the smallest candidate K whose predicted error is within 10 % of the best (each eigenvalue costs
-basis and time; the last ones, the least accurate, add little).  The basis Lb is the smallest on which each of
-those K eigenvalues of the best expansion agrees with Lb + 2 to a tenth of its own error, so that the basis adds
-nothing the target's errors would notice.
+The floor falls with La and the noise grows with it, so the plan takes the La that minimizes √(f² + e²), and the
+smallest candidate K whose √(f² + e²) is within 10 % of the best (each eigenvalue costs basis and time; the last
+ones, the least accurate, add little).  The basis Lb is the smallest on which each of those K eigenvalues of the
+best expansion agrees with Lb + 2 to a tenth of its own error, so that the basis adds nothing the target's errors
+would notice.
+
+The factors c are themselves a discretization (of the mesh's conformal map), and the best expansion's spectrum
+misses the target by δ_i, which no fit of degree La need beat: the fit is held to √(σ_i² + δ_i²).  A fit anywhere
+within those errors is as good as the target and the basis allow, so the error predicted against c is √(f² + e'²),
+e' the error bar of those errors at the chosen (La, K).  On the star of ``benchmarks/bench_surface.py`` the
+Richardson-refined eigenvalues have σ/λ of a median 5e-5, while the best expansions of c miss them by 1.5e-3 … 1e-2
+(La 11 … 5): the factors, not the spectrum, then set the error against them.
 
 When the predicted error exceeds the accuracy asked for, :meth:`SurfacePlan.diagnosis` says why in one line: the
 dynamic range of c, the floor at the largest La that K eigenvalues determine, the La the floor alone would need,
@@ -88,9 +95,14 @@ class SurfacePlan:
     lmax_factor, numeig, lmax : int
         The chosen La, K and basis Lb.
     predicted : float
-        Predicted relative L2 error of ρ against the cMCF factors at (La, K): √(floor² + noise²).
+        Predicted relative L2 error of ρ against the cMCF factors at (La, K): √(floor² + e'²), e' the error bar of
+        :attr:`fit_errors` (module notes).
     floor : float
         The floor f(La) alone.
+    noise : float
+        The error bar of the target's own errors σ alone at (La, K): what the spectrum determines.
+    reference_misfit : float
+        max_i δ_i / λ_i: how far the best expansion's spectrum is from the target (relative).
     accuracy : float
         The error asked for.
     factor_range : (float, float)
@@ -112,6 +124,8 @@ class SurfacePlan:
     lmax: int
     predicted: float
     floor: float
+    noise: float
+    reference_misfit: float
     accuracy: float
     factor_range: tuple
     floor_degree: int | None
@@ -133,18 +147,24 @@ class SurfacePlan:
     def statement(self) -> str:
         """One sentence for the console."""
         return (f"plan: log rho of degree La = {self.lmax_factor} from K = {self.numeig} eigenvalues on the basis "
-                f"Lb = {self.lmax}; predicted error of rho {self.predicted:.2g} (floor of the degree-"
-                f"{self.lmax_factor} expansion {self.floor:.2g}, the target's errors "
-                f"{np.sqrt(max(self.predicted ** 2 - self.floor ** 2, 0.0)):.2g})")
+                f"Lb = {self.lmax}; predicted error of rho against the cMCF factors {self.predicted:.2g} (floor of "
+                f"the degree-{self.lmax_factor} expansion {self.floor:.2g}; the target's errors alone "
+                f"{self.noise:.2g}; the expansion's spectrum misses the target by up to {self.reference_misfit:.2g})")
 
     def diagnosis(self) -> str | None:
         """None when the plan reaches its accuracy; else one line: why not, and what it would take."""
         if self.feasible:
             return None
-        if not self.beyond_basis:
-            return (f"the target's errors allow rho to about {self.predicted:.2g} only, not {self.accuracy:g}: the "
+        heard = float(np.hypot(self.floor, self.noise))
+        if not self.beyond_basis and heard > self.accuracy:
+            return (f"the target's errors allow rho to about {heard:.2g} only, not {self.accuracy:g}: the "
                     "floor of the basis is below it, the eigenvalues' errors are not; more accurate eigenvalues (a "
                     "finer mesh) would lower it")
+        if not self.beyond_basis:
+            return (f"the eigenvalues determine rho to about {heard:.2g}, but the best degree-{self.lmax_factor} "
+                    f"expansion of the cMCF factors misses their spectrum by up to {self.reference_misfit:.2g} "
+                    f"(relative), which leaves about {self.predicted:.2g} between a fit and the factors, not "
+                    f"{self.accuracy:g}: the factors' own discretization (a finer mesh) would lower it")
         lo, hi = self.factor_range
         need = (f"the floor alone would need La = {self.floor_degree} ({(self.floor_degree + 1) ** 2} coefficients, "
                 f"at least {2 * (self.floor_degree + 1) ** 2} accurate eigenvalues)" if self.floor_degree is not None
@@ -161,7 +181,8 @@ class SurfacePlan:
     def to_dict(self) -> dict:
         """JSON-ready."""
         return {"lmax_factor": self.lmax_factor, "numeig": self.numeig, "lmax": self.lmax,
-                "predicted": self.predicted, "floor": self.floor, "accuracy": self.accuracy,
+                "predicted": self.predicted, "floor": self.floor, "noise": self.noise,
+                "reference_misfit": self.reference_misfit, "accuracy": self.accuracy,
                 "factor_range": list(self.factor_range), "floor_degree": self.floor_degree,
                 "feasible": self.feasible, "beyond_basis": self.beyond_basis, "diagnosis": self.diagnosis(),
                 "rows": [r.to_dict() for r in self.rows]}
@@ -261,10 +282,14 @@ def plan_surface_fit(target: Target, *, accuracy: float = DEFAULT_ACCURACY, cand
     model = LogHarmonicModel(basis_degree_for(pick.numeig, pick.lmax_factor), pick.lmax_factor)
     scaled[0] += np.sqrt(4 * np.pi) * np.log(target.area_estimate() / model.area(u))
     lb, reference_eigenvalues = _basis(scaled, pick.lmax_factor, 0.1 * noise[1:pick.numeig])
-    misfit = reference_eigenvalues - target.eigenvalues[:pick.numeig]
+    lam = target.eigenvalues[:pick.numeig]
+    misfit = reference_eigenvalues - lam
     fit_errors = np.hypot(target.errors[:pick.numeig], misfit)
     fit_errors[0] = 0.0
-    return SurfacePlan(lmax_factor=pick.lmax_factor, numeig=pick.numeig, lmax=lb, predicted=pick.predicted,
-                       floor=pick.floor, accuracy=accuracy, factor_range=(float(c.min()), float(c.max())),
+    bar = identifiability_by_numeig(LogHarmonicModel(lb, pick.lmax_factor), scaled, [pick.numeig], fit_area=True,
+                                    noise=np.r_[1.0, fit_errors[1:] / lam[1:]])[0].noise_error
+    return SurfacePlan(lmax_factor=pick.lmax_factor, numeig=pick.numeig, lmax=lb,
+                       predicted=float(np.hypot(pick.floor, bar)), floor=pick.floor, noise=pick.noise,
+                       reference_misfit=float(np.max(np.abs(misfit[1:]) / lam[1:])), accuracy=accuracy, factor_range=(float(c.min()), float(c.max())),
                        floor_degree=_floor_degree(target.sphere, c, accuracy), rows=tuple(rows), reference=scaled,
                        fit_errors=fit_errors)

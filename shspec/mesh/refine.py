@@ -22,6 +22,8 @@ Discretization error.  :func:`eigenvalue_errors` compares a mesh's cotan spectru
 factors) with that of its 4-to-1 midpoint subdivision, on which the eigenvalues of a P1 discretization have
 converged further: |λ_i − λ_i'| / λ_i estimates the error of λ_i on the mesh (the study's A.2: how many eigenvalues
 a mesh can give).  :func:`trusted_numeig` keeps the eigenvalues whose estimate stays below a tolerance.
+:func:`refined_eigenvalues` gives the spectra of repeated subdivisions, from which
+:func:`~shspec.targets.refined_target` extrapolates.
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ from .mobius import center_mesh
 from .triangle_mesh import TriangleMesh
 
 __all__ = ["MeshQuality", "mesh_quality", "edges", "subdivide", "refine_sphere", "FieldAlignment",
-           "align_vertex_field", "subdivision_eigenvalues", "eigenvalue_errors", "trusted_numeig"]
+           "align_vertex_field", "refined_eigenvalues", "subdivision_eigenvalues", "eigenvalue_errors", "trusted_numeig"]
 
 
 def _check_mesh(mesh) -> TriangleMesh:
@@ -360,8 +362,8 @@ def align_vertex_field(sphere_a: TriangleMesh, s_a, sphere_b: TriangleMesh, s_b,
                           rms=float(np.sqrt(w @ (out - s_b) ** 2)), centred_rms=float(np.sqrt(2 * canonical.cost)))
 
 
-def subdivision_eigenvalues(mesh: TriangleMesh, k: int, factors=None) -> tuple[np.ndarray, np.ndarray]:
-    """The first k cotan eigenvalues of a mesh and of its 4-to-1 midpoint subdivision (module notes).
+def refined_eigenvalues(mesh: TriangleMesh, k: int, levels: int = 1, factors=None) -> np.ndarray:
+    """The first k cotan eigenvalues of a mesh and of its repeated 4-to-1 midpoint subdivisions (module notes).
 
     Parameters
     ----------
@@ -369,30 +371,42 @@ def subdivision_eigenvalues(mesh: TriangleMesh, k: int, factors=None) -> tuple[n
         n vertices; with ``factors`` a unit-sphere mesh.
     k : int
         Number of eigenvalues, 2 ≤ k < n.
+    levels : int
+        Number of subdivisions, ≥ 1 (the last mesh has about 4^levels · n vertices).
     factors : (n,) array, optional
-        Per-vertex conformal factors c (mass diag(c)·M_lumped); on the subdivision log c is interpolated linearly
+        Per-vertex conformal factors c (mass diag(c)·M_lumped); on each subdivision log c is interpolated linearly
         and the new vertices are projected to the sphere.
 
     Returns
     -------
-    (coarse (k,), fine (k,))
-        λ_i on the mesh and λ_i' on its subdivision, both with λ₀ = 0 exactly.
+    (levels + 1, k) array
+        Row j: λ_i on the mesh subdivided j times, λ₀ = 0 exactly.
     """
     mesh = _check_mesh(mesh)
     k = check_int(k, "k", minimum=2, maximum=mesh.nvertices - 1)
+    levels = check_int(levels, "levels", minimum=1)
     if factors is None:
-        fine, _ = subdivide(mesh)
-        c, cf = np.ones(mesh.nvertices), np.ones(fine.nvertices)
+        log_c = None
     else:
         c = _check_values(mesh, factors, "factors")
         if np.any(c <= 0):
             raise InvalidArgumentError("factors must be > 0")
-        fine, ls = subdivide(mesh, np.log(c), project=True)
-        cf = np.exp(ls)
-    lam = eigenpairs(cotan_stiffness(mesh), sp.diags(c * vertex_areas(mesh)), k).eigenvalues
-    ref = eigenpairs(cotan_stiffness(fine), sp.diags(cf * vertex_areas(fine)), k).eigenvalues
-    lam[0] = ref[0] = 0.0
-    return lam, ref
+        log_c = np.log(c)
+    out = np.empty((levels + 1, k))
+    for j in range(levels + 1):
+        if j:
+            mesh, log_c = subdivide(mesh, log_c, project=log_c is not None)
+        c = np.ones(mesh.nvertices) if log_c is None else np.exp(log_c)
+        out[j] = eigenpairs(cotan_stiffness(mesh), sp.diags(c * vertex_areas(mesh)), k).eigenvalues
+    out[:, 0] = 0.0
+    return out
+
+
+def subdivision_eigenvalues(mesh: TriangleMesh, k: int, factors=None) -> tuple[np.ndarray, np.ndarray]:
+    """The first k cotan eigenvalues of a mesh and of its 4-to-1 midpoint subdivision: (coarse (k,), fine (k,)),
+    both with λ₀ = 0 exactly (:func:`refined_eigenvalues` with one level, same arguments)."""
+    coarse, fine = refined_eigenvalues(mesh, k, 1, factors)
+    return coarse, fine
 
 
 def eigenvalue_errors(mesh: TriangleMesh, k: int, factors=None) -> tuple[np.ndarray, np.ndarray]:

@@ -3,8 +3,8 @@
 Steps (each reported with a status, never faked):
 
 1. cMCF of the target (:func:`~shspec.mesh.cmcf.cmcf`): the sphere mesh and the per-vertex factors c.
-2. The target's cotan spectrum refined by one subdivision, with its discretization error
-   (:func:`~shspec.targets.refined_target`)
+2. The target's cotan spectrum refined by subdivision (Richardson-extrapolated from two subdivisions up to 12,500
+   vertices), with its discretization error (:func:`~shspec.targets.refined_target`)
    and, unless La and K are given, the plan of a log-ρ fit (:func:`~shspec.inverse.surface_plan.plan_surface_fit`):
    La, K and Lb from the floor of the basis and the target's errors, and the error they predict.
 3. Spectra, first K eigenvalues: the target's PL spectrum; the sphere carrying c, PL (:class:`MeshModel`) and

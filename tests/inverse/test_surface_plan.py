@@ -1,6 +1,7 @@
 """Hearing a mesh's surface: the error metric of log rho, the refined target and its Richardson error, and the plan of
 a log-rho fit (floor against noise) with its diagnosis where the harmonic basis cannot go."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -12,11 +13,11 @@ from shspec.galerkin import LogHarmonicModel
 from shspec.galerkin.truncation import basis_degree_for
 from shspec.inverse.surface_plan import log_floor, plan_surface_fit
 from shspec.mesh.model import MeshModel
-from shspec.mesh.refine import subdivide, subdivision_eigenvalues
+from shspec.mesh.refine import refined_eigenvalues, subdivision_eigenvalues
 from shspec.mesh.shapes import icosphere, star_surface
 from shspec.sphere.grid import evaluate_on_grid, glq_grid
 from shspec.sphere.random import random_coefficients
-from shspec.targets import Target, mesh_target, refined_target, subdivision_changes
+from shspec.targets import Target, mesh_target, refined_target, refinement_levels, subdivision_changes
 
 
 def test_the_log_models_error_metric_is_the_relative_l2_change_of_rho():
@@ -33,20 +34,34 @@ def test_the_log_models_error_metric_is_the_relative_l2_change_of_rho():
     assert abs(np.linalg.norm(du) / np.linalg.norm(u) / expected - 1) > 0.1
 
 
-def test_the_refined_target_is_the_subdivisions_spectrum_with_a_third_of_its_change_as_error():
-    target = mesh_target(star_surface(3, 3, 0.3, 2), 10, 20, 4)
+def test_the_refined_target_is_a_subdivisions_spectrum_or_its_richardson_extrapolation_with_honest_errors():
+    target = mesh_target(star_surface(3, 3, 0.3, 2), 10, 20, 4)  # 162 vertices: two subdivisions by default
+    assert refinement_levels(target.mesh.nvertices) == 2 and refinement_levels(20_000) == 1
+    s = refined_eigenvalues(target.mesh, 20, 3)  # the mesh and three subdivisions (10242 vertices)
     coarse, fine = subdivision_eigenvalues(target.mesh, 20)
-    refined = refined_target(target)
-    np.testing.assert_allclose(refined.eigenvalues, fine, rtol=1e-12)
-    np.testing.assert_allclose(refined.errors[1:], np.abs(coarse[1:] - fine[1:]) / 3, rtol=1e-9)
+    np.testing.assert_array_equal(s[:2], [coarse, fine])
+    one = refined_target(target, fine)
+    np.testing.assert_allclose(one.eigenvalues, fine, rtol=1e-12)
+    np.testing.assert_allclose(one.errors[1:], np.abs(coarse[1:] - fine[1:]) / 3, rtol=1e-9)
     np.testing.assert_allclose(subdivision_changes(target)[1:], np.abs(coarse[1:] - fine[1:]) / coarse[1:], rtol=1e-9)
     # second order: one more subdivision moves lambda' by about the Richardson error, far less than it moved lambda
-    finer = subdivision_eigenvalues(subdivide(target.mesh)[0], 20)[1]
-    moved = np.abs(finer[1:] - fine[1:])
-    assert np.all(moved <= 1.5 * refined.errors[1:])
+    moved = np.abs(s[2, 1:] - fine[1:])
+    assert np.all(moved <= 1.5 * one.errors[1:])
     assert np.median(moved / np.abs(coarse[1:] - fine[1:])) < 0.4
+    two = refined_target(target)
+    r = [np.sort((4 * s[j + 1] - s[j]) / 3) for j in range(3)]
+    np.testing.assert_allclose(two.eigenvalues, r[1], rtol=1e-12)
+    change = np.abs(r[1] - r[0])
+    window = [change[max(i - 3, 0):i + 4].max() for i in range(20)]  # its own and three neighbours' on each side
+    np.testing.assert_allclose(two.errors[1:], window[1:], rtol=1e-9)
+    # the extrapolation's change bounds its error, measured against the next extrapolation (a third subdivision);
+    # and it is tens of times below the error of lambda'
+    assert np.all(np.abs(r[2] - r[1])[1:] <= two.errors[1:])
+    assert np.median(two.errors[1:] / one.errors[1:]) < 0.1
     with pytest.raises(InvalidArgumentError, match="not a mesh's cotan spectrum"):
         refined_target(Target("t", target.eigenvalues))
+    with pytest.raises(InvalidArgumentError, match="1 or 2 levels"):
+        refined_target(target, s[1:])
 
 
 def _planned_target(mesh, numeig):
@@ -64,8 +79,15 @@ def test_the_plan_balances_the_floor_of_the_basis_against_the_targets_errors():
         assert floors[la] == pytest.approx(log_floor(target.sphere, target.factors, la)[1], rel=1e-12)
     best = min(r.predicted for r in plan.rows)
     chosen = next(r for r in plan.rows if (r.lmax_factor, r.numeig) == (plan.lmax_factor, plan.numeig))
-    assert plan.predicted == chosen.predicted <= 1.1 * best
-    assert plan.predicted == pytest.approx(np.hypot(chosen.floor, chosen.noise))
+    assert chosen.predicted <= 1.1 * best and plan.noise == chosen.noise and plan.floor == chosen.floor
+    # against the factors, the fit is held to the target's errors and the best expansion's own misfit as well
+    assert plan.predicted >= chosen.predicted
+    lam = target.eigenvalues[:plan.numeig]
+    np.testing.assert_allclose(plan.fit_errors[1:] ** 2 - target.errors[1:plan.numeig] ** 2,
+                               (LogHarmonicModel(plan.lmax, plan.lmax_factor).eigenvalues(plan.reference, plan.numeig)
+                                - lam)[1:] ** 2, rtol=1e-6, atol=1e-14 * lam[-1] ** 2)
+    assert plan.reference_misfit == pytest.approx(np.max(np.sqrt(np.maximum(plan.fit_errors[1:] ** 2 - target.errors[
+        1:plan.numeig] ** 2, 0)) / lam[1:]), rel=1e-6)
     # the noise grows with the degree at a fixed K: more unknowns from the same eigenvalues
     noise = [r.noise for r in plan.rows if r.numeig == target.numeig]
     assert noise[-1] > noise[0]
@@ -73,6 +95,11 @@ def test_the_plan_balances_the_floor_of_the_basis_against_the_targets_errors():
     record = json.loads(json.dumps(plan.to_dict()))
     assert record["feasible"] == plan.feasible and record["lmax_factor"] == plan.lmax_factor
     assert (plan.diagnosis() is None) == plan.feasible
+    # limited by the target's errors, or by the factors' own spectral misfit: each says which
+    by_noise = dataclasses.replace(plan, floor=0.01, noise=0.2, predicted=0.3, accuracy=0.05)
+    assert by_noise.diagnosis().startswith("the target's errors allow rho to about 0.2 only")
+    by_misfit = dataclasses.replace(plan, floor=0.01, noise=0.01, predicted=0.3, accuracy=0.05)
+    assert "misses their spectrum" in by_misfit.diagnosis() and "about 0.3 between" in by_misfit.diagnosis()
 
 
 @pytest.mark.slow
