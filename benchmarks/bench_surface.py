@@ -71,7 +71,8 @@ def star(work: Path) -> dict:
     run = shspec("fit", "--target", f"mesh:{mesh}", "--out", str(work / "star"))
     s = json.loads((work / "star" / "summary.json").read_text())
     surface, plan = s["surface"], s["surface_plan"]
-    return {**run, "plan": {k: plan[k] for k in ("lmax_factor", "numeig", "lmax", "predicted", "floor", "feasible")},
+    return {**run, "plan": {k: plan[k] for k in ("lmax_factor", "numeig", "lmax", "predicted", "floor", "noise",
+                                                  "reference_misfit", "feasible")},
             "successes": s["successes"], "starts_run": len(s["starts"]), "surface": surface,
             "factor_error_over_predicted": surface["factor_error"] / plan["predicted"],
             "error_bar_over_measured": surface["error_bar"] / surface["factor_error"]}
