@@ -16,6 +16,7 @@ from shspec.cli import main
 from shspec.embed import AmbiguityOptions, angle_defects, detect_ambiguity, embed, render_mesh, surface_distance
 from shspec.errors import InvalidArgumentError
 from shspec.mesh.cmcf import cmcf
+from shspec.mesh.eigen import mesh_spectrum
 from shspec.mesh.mesh_files import save_mesh
 from shspec.mesh.shapes import blob, icosphere
 from shspec.pipeline import ValidationOptions, validate_target, write_report
@@ -70,8 +71,12 @@ def test_validation_pipeline_and_report(tmp_path):
     assert s["status"]["fit"] == "skipped: disabled"
     assert s["hausdorff_relative"] < 0.05 and s["edge_length_error"] < 0.01
     assert set(result.spectra) == {"target_pl", "cmcf_pl", "cmcf_harmonic", "embedded_pl"}
-    # The re-embedded mesh and the sphere with the cMCF factors have nearly the target's spectrum.
-    assert s["spectral_error"]["embedded_pl"] < 0.05 and s["spectral_error"]["cmcf_pl"] < 0.05
+    # The re-embedded mesh and the sphere with the cMCF factors have nearly the target mesh's cotan spectrum (the
+    # same discretization: the summary's target is extrapolated to the surface, 5 % away on 162 vertices)
+    own = mesh_spectrum(blob(2), 8, whole_multiplets=False).eigenvalues
+    for key in ("embedded_pl", "cmcf_pl"):
+        assert np.max(np.abs(result.spectra[key][1:] / own[1:] - 1)) < 0.04
+    assert 0.02 < s["spectral_error"]["embedded_pl"] < 0.1
     report = write_report(result, tmp_path / "out")
     text = report.read_text()
     assert "Hausdorff" in text and "![spectra](spectra.png)" in text
