@@ -283,11 +283,11 @@ def refined_target(target: Target, fine=None) -> Target:
     For second-order convergence λ_h − λ ≈ C h², with λ' and λ'' the eigenvalues after one and two 4-to-1
     subdivisions (h/2, h/4):
 
-    * one subdivision: λ' with error |λ − λ'| / 3, four times smaller than that of λ;
+    * one subdivision: λ' with error ``|λ − λ'| / 3``, four times smaller than that of λ;
     * two: the Richardson extrapolations R₁ = (4λ' − λ)/3 and R₂ = (4λ'' − λ')/3, each sorted (eigenvalues that
-      cross between meshes swap places), R₂ with error the largest change |R₂ − R₁| among the eigenvalue and its
-      :data:`_NEIGHBOURS` neighbours on either side.  Measured against a third subdivision's extrapolation R₃ on the
-      star of ``benchmarks/bench_surface.py`` (10242 vertices, 300 eigenvalues): |R₃ − R₂| stays below 0.66 of this
+      cross between meshes swap places), R₂ with error the largest change ``|R₂ − R₁|`` among the eigenvalue and
+      its three neighbours on either side.  Measured against a third subdivision's extrapolation R₃ on the star of
+      ``benchmarks/bench_surface.py`` (10242 vertices, 300 eigenvalues): ``|R₃ − R₂|`` stays below 0.66 of this
       error at every eigenvalue, which is a median 0.26 of the one-level error of λ''; the change alone, without
       the neighbours, is exceeded at 9 of 299 (near-degenerate pairs), by up to 4.4×.
 

@@ -290,6 +290,7 @@ def plan_surface_fit(target: Target, *, accuracy: float = DEFAULT_ACCURACY, cand
                                     noise=np.r_[1.0, fit_errors[1:] / lam[1:]])[0].noise_error
     return SurfacePlan(lmax_factor=pick.lmax_factor, numeig=pick.numeig, lmax=lb,
                        predicted=float(np.hypot(pick.floor, bar)), floor=pick.floor, noise=pick.noise,
-                       reference_misfit=float(np.max(np.abs(misfit[1:]) / lam[1:])), accuracy=accuracy, factor_range=(float(c.min()), float(c.max())),
+                       reference_misfit=float(np.max(np.abs(misfit[1:]) / lam[1:])), accuracy=accuracy,
+                       factor_range=(float(c.min()), float(c.max())),
                        floor_degree=_floor_degree(target.sphere, c, accuracy), rows=tuple(rows), reference=scaled,
                        fit_errors=fit_errors)

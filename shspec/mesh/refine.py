@@ -48,7 +48,8 @@ from .mobius import center_mesh
 from .triangle_mesh import TriangleMesh
 
 __all__ = ["MeshQuality", "mesh_quality", "edges", "subdivide", "refine_sphere", "FieldAlignment",
-           "align_vertex_field", "refined_eigenvalues", "subdivision_eigenvalues", "eigenvalue_errors", "trusted_numeig"]
+           "align_vertex_field", "refined_eigenvalues", "subdivision_eigenvalues", "eigenvalue_errors",
+           "trusted_numeig"]
 
 
 def _check_mesh(mesh) -> TriangleMesh:
