@@ -250,10 +250,10 @@ def refinement_levels(nvertices: int) -> int:
     return 2 if 16 * check_int(nvertices, "nvertices", minimum=4) <= REFINED_VERTICES else 1
 
 
-def subdivision_spectra(target: Target, levels: int = 1) -> np.ndarray:
+def subdivision_spectra(target: Target, levels: int | None = None) -> np.ndarray:
     """The eigenvalues (levels, k) of a mesh target after 1 … ``levels`` 4-to-1 subdivisions: of its mesh (source
     "pl") or of its cMCF sphere carrying the cMCF factors ("cmcf"), by
-    :func:`~shspec.mesh.refine.refined_eigenvalues`.
+    :func:`~shspec.mesh.refine.refined_eigenvalues`; ``levels`` None: :func:`refinement_levels` of that mesh.
 
     Raises
     ------
@@ -261,17 +261,20 @@ def subdivision_spectra(target: Target, levels: int = 1) -> np.ndarray:
         For a target without a mesh spectrum.
     """
     if target.source == "pl" and target.mesh is not None:
-        return refined_eigenvalues(target.mesh, target.numeig, levels)[1:]
-    if target.source == "cmcf" and target.sphere is not None:
-        return refined_eigenvalues(target.sphere, target.numeig, levels, factors=target.factors)[1:]
-    raise InvalidArgumentError(f"the target {target.name!r} (source {target.source!r}) is not a mesh's cotan "
-                               "spectrum: no discretization error to estimate")
+        mesh, factors = target.mesh, None
+    elif target.source == "cmcf" and target.sphere is not None:
+        mesh, factors = target.sphere, target.factors
+    else:
+        raise InvalidArgumentError(f"the target {target.name!r} (source {target.source!r}) is not a mesh's cotan "
+                                   "spectrum: no discretization error to estimate")
+    levels = refinement_levels(mesh.nvertices) if levels is None else levels
+    return refined_eigenvalues(mesh, target.numeig, levels, factors=factors)[1:]
 
 
 def subdivision_changes(target: Target, fine=None) -> np.ndarray:
     """The relative changes |λ_i − λ_i'| / λ_i (k,) of a mesh target's cotan eigenvalues under one 4-to-1
     subdivision (``fine``: the first subdivision's eigenvalues when already computed, :func:`subdivision_spectra`)."""
-    fine = subdivision_spectra(target)[0] if fine is None else np.asarray(fine, dtype=float)
+    fine = subdivision_spectra(target, 1)[0] if fine is None else np.asarray(fine, dtype=float)
     out = np.zeros(target.numeig)
     out[1:] = np.abs(target.eigenvalues[1:] - fine[1:]) / target.eigenvalues[1:]
     return out
@@ -306,10 +309,7 @@ def refined_target(target: Target, fine=None) -> Target:
     InvalidArgumentError
         For a target without a mesh spectrum, or ``fine`` of the wrong shape.
     """
-    if fine is None:
-        mesh = target.mesh if target.source == "pl" else target.sphere
-        fine = subdivision_spectra(target, refinement_levels(mesh.nvertices) if mesh is not None else 1)
-    fine = np.atleast_2d(np.asarray(fine, dtype=float))
+    fine = np.atleast_2d(np.asarray(subdivision_spectra(target) if fine is None else fine, dtype=float))
     if fine.shape[1] != target.numeig or fine.shape[0] not in (1, 2):
         raise InvalidArgumentError(f"fine must be ({target.numeig},) or (levels, {target.numeig}) with 1 or 2 levels, "
                                    f"got shape {fine.shape}")

@@ -31,7 +31,7 @@ from ..inverse.output import alignment_record, success_definition, write_result
 from ..inverse.schedule import (DEFAULT_STAGE_MAX_ITER, default_hop_degree, degree_ramp, numeig_ramp,
                                parse_schedule)
 from ..targets import (TARGET_SOURCES, Target, check_target_text, parse_target, read_spectrum, refined_target,
-                       refinement_levels, subdivision_changes, subdivision_spectra)
+                       subdivision_changes, subdivision_spectra)
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.mesh_files import load_mesh
 from ..mesh.progress import mesh_progress
@@ -335,10 +335,9 @@ def _refined(target: Target, fine, quiet: bool) -> Target:
 
 
 def _subdivision_spectra(target: Target, quiet: bool) -> np.ndarray:
-    """The spectra (levels, k) of a mesh target's subdivisions, :func:`refinement_levels` of them."""
-    mesh = target.mesh if target.source == "pl" else target.sphere
+    """:func:`subdivision_spectra` (levels, k), with the mesh's progress on the console."""
     with mesh_progress(not quiet):
-        return subdivision_spectra(target, refinement_levels(mesh.nvertices))
+        return subdivision_spectra(target)
 
 
 def _surface_target(args) -> tuple[Target, dict]:

@@ -58,7 +58,8 @@ from ..targets import mesh_target, refined_target
 __all__ = ["ValidationOptions", "ValidationResult", "validate_target", "write_report", "SPECTRUM_LABELS"]
 
 #: What each spectrum of a validation is, as figure legends say it.
-SPECTRUM_LABELS = {"target_pl": "target mesh, subdivided once (cotan)", "cmcf_pl": "cMCF sphere with its factors (cotan)",
+SPECTRUM_LABELS = {"target_pl": "target mesh, refined by subdivision (cotan)",
+                   "cmcf_pl": "cMCF sphere with its factors (cotan)",
                    "cmcf_harmonic": "cMCF factors, log expanded (Galerkin)", "embedded_pl": "re-embedded cMCF factors",
                    "fit_harmonic": "fitted log rho (Galerkin)", "fit_embedded_pl": "re-embedded fitted factors"}
 
