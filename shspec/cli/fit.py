@@ -184,7 +184,8 @@ def register(subparsers) -> None:
     adv.add_argument("--schedule", default="auto", metavar="S",
                      help="'auto', 'degree-ramp', 'ramp', 'none', or stages '2,4,8,15' / '6:16,6:64h' (L:K, h = hop)")
     adv.add_argument("--hop-degree", type=int, default=None, metavar="D",
-                     help="degree whose stage hops in the degree ramp (0: none; default: 6 above degree 6)")
+                     help="degree whose stage hops in the degree ramp (0: none; default: 6 in fits of degree 10 "
+                          "and more)")
     adv.add_argument("--basin-hops", type=int, default=d.basin_hops, metavar="N", help="accepted escape moves at most")
     adv.add_argument("--hop-grid", action=argparse.BooleanOptionalAction, default=d.hop_grid,
                      help="also try every degree block turned through the octahedral group")

@@ -17,7 +17,7 @@ from ..errors import InvalidArgumentError
 from ..spectral_model import SpectralModel
 
 __all__ = ["Stage", "parse_schedule", "numeig_ramp", "degree_ramp", "default_schedule", "default_hop_degree",
-           "DEFAULT_STAGE_MAX_ITER", "DEFAULT_HOP_DEGREE"]
+           "DEFAULT_STAGE_MAX_ITER", "DEFAULT_HOP_DEGREE", "HOP_FIT_DEGREE"]
 
 
 @dataclass(frozen=True)
@@ -83,9 +83,15 @@ def parse_schedule(text: str) -> tuple[Stage, ...]:
 #: Iterations of every stage but the last in the default degree ramp (see :func:`degree_ramp`).
 DEFAULT_STAGE_MAX_ITER = 40
 
-#: The degree whose stage of the default degree ramp hops (see :func:`degree_ramp`), in fits of higher degree:
-#: there the hops succeed on their own and a round of moves is cheap (the user guide's inverse page has the numbers).
+#: The degree whose stage of the default degree ramp hops (see :func:`degree_ramp`) in fits of degree
+#: :data:`HOP_FIT_DEGREE` or more: there the hops succeed on their own and a round of moves is cheap (the user
+#: guide's inverse page has the numbers).
 DEFAULT_HOP_DEGREE = 6
+
+#: The smallest fit degree whose default degree ramp hops at :data:`DEFAULT_HOP_DEGREE`.  At degree 8 the hops of
+#: the degree-6 stage cannot reach a zero residual and only cost time (measured: the user guide's inverse page).
+HOP_FIT_DEGREE = 10
+
 
 def numeig_ramp(numeig: int, lmax_factor: int | None = None, first: int = 16) -> tuple[Stage, ...]:
     """A schedule that matches more and more eigenvalues: k = 16, 36, 64, ... ((2j)² up to ``numeig``), then all.
@@ -137,9 +143,9 @@ def degree_ramp(numeig: int, lmax_factor: int, stage_max_iter: int | None = None
         The stage that raises the degree to this one runs to convergence (``FitOptions.max_iter``) and then the
         basin hops (:attr:`Stage.hops`): the global search on the low degrees while their stage is small, before
         the higher degrees are added.  None: hops after the last stage only.  No stage hops if that stage would
-        match ``numeig`` eigenvalues or more.  Fits above degree 6 hop at degree 6 by default
-        (:data:`DEFAULT_HOP_DEGREE`).  The hops cost time where the stage cannot reach a zero residual (a
-        regularized fit, a ρ of higher degree).
+        match ``numeig`` eigenvalues or more.  Fits of degree 10 or more hop at degree 6 by default
+        (:data:`DEFAULT_HOP_DEGREE`, :data:`HOP_FIT_DEGREE`).  The hops cost time where the stage cannot reach a
+        zero residual (a regularized fit, a ρ of higher degree).
     """
     numeig, lmax_factor = check_int(numeig, "numeig", minimum=2), check_int(lmax_factor, "lmax_factor", minimum=2)
     stage_max_iter = check_int(stage_max_iter, "stage_max_iter", allow_none=True, minimum=1)
@@ -171,9 +177,9 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
 
 
 def default_hop_degree(lmax_factor: int) -> int | None:
-    """The degree whose stage hops in the default degree ramp of a fit of degree ``lmax_factor``
-    (:data:`DEFAULT_HOP_DEGREE`, or None when the fit's own degree is not above it: its last stage hops anyway)."""
+    """The degree whose stage hops in the default degree ramp of a fit of degree ``lmax_factor``:
+    :data:`DEFAULT_HOP_DEGREE` from :data:`HOP_FIT_DEGREE` on, else None (only the last stage hops)."""
     lmax_factor = check_int(lmax_factor, "lmax_factor", minimum=0)
-    return DEFAULT_HOP_DEGREE if lmax_factor > DEFAULT_HOP_DEGREE else None
+    return DEFAULT_HOP_DEGREE if lmax_factor >= HOP_FIT_DEGREE else None
 
 

@@ -335,9 +335,11 @@ def test_cli_hop_degree_marks_the_stage_that_hops(tmp_path, capsys):
     stages = json.loads((tmp_path / "summary.json").read_text())["options"]["schedule"]
     assert [(s["lmax_factor"], s["numeig"], s["max_iter"], s["hops"]) for s in stages] == [
         (2, 16, DEFAULT_STAGE_MAX_ITER, False), (3, 25, None, True), (6, 30, None, False)]
-    # the default hops at degree 6 in fits above degree 6 only, and the command line's default is the library's
-    assert default_schedule(HarmonicModel(12, 8), 150) == degree_ramp(150, 8, DEFAULT_STAGE_MAX_ITER, hop_degree=6)
-    assert not any(s.hops for s in default_schedule(HarmonicModel(8, 6), 120))
+    # the default hops at degree 6 in fits of degree 10 and more only, and the command line's default is the
+    # library's
+    assert default_schedule(HarmonicModel(16, 10), 300) == degree_ramp(300, 10, DEFAULT_STAGE_MAX_ITER, hop_degree=6)
+    for la in (6, 9):
+        assert not any(s.hops for s in default_schedule(HarmonicModel(16, la), 200))
     # --hop-degree shapes only the degree ramp of a harmonic fit
     for extra in (["--schedule", "none"], ["--schedule", "2,6"], ["--model", "mesh", "--target", "star:3,3,0.4"]):
         args = ["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "1",
