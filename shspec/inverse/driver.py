@@ -37,6 +37,8 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
     rng_seed = (opt.seed, progress.index)
     params = progress.base
     last = len(problem.stages) - 1
+    # the hops after the last stage; after a search stage (FitProblem.search) only where its basis did not hold
+    hop_at_end = problem.search is None or progress.stage > last
     if progress.stage > last:  # resumed during the basin hops: restore the state the stages ended in
         obj = problem.objective(last, progress.base)
         ev = obj.evaluate(obj.initial())
@@ -52,6 +54,8 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
         elif not resumed:
             params = problem.enter_stage(s, params, np.random.default_rng([*rng_seed, s + 1]))
             progress.stage, progress.base = s, params
+        if problem.search is not None and s == problem.search + 1:  # decided from the stage's start alone: the
+            hop_at_end = not problem.search_basis_holds(progress.base)  # same in a resumed run
         try:
             obj = problem.objective(s, progress.base)
             optimizer = make_optimizer(problem.optimizer, obj, obj.initial(), opt,
@@ -63,7 +67,8 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
             progress.status = "stopped: the start of the next stage is not a metric"
             progress.say(opt, f"  start {progress.index} stage {s}: {progress.status} ({exc}); keeping the state of "
                               f"stage {s - 1}")
-            return progress.result(progress.status, time.perf_counter() - t0, progress.succeeded(problem))
+            return progress.result(progress.status, time.perf_counter() - t0,
+                                   progress.succeeded(problem, final=True))
         max_iter = problem.stages[s].max_iter or opt.max_iter
 
         def record():
@@ -96,17 +101,22 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
             progress.display.stage_done()
         if (s < last and problem.stages[s].hops and opt.basin_hops
                 and not progress.succeeded(problem)):
-            # not checkpointed apart: a resume inside these hops runs stage s again, which repeats them exactly
-            progress.status = basin_hop(problem, progress, progress.status, s)
+            if s == problem.search and not problem.search_basis_holds(progress.params):
+                progress.say(opt, f"  start {progress.index} stage {s}: its basis does not hold at this rho; the "
+                                  "hops follow the polish on the model's own")
+            else:
+                # not checkpointed apart: a resume inside these hops runs stage s again, which repeats them exactly
+                progress.status = basin_hop(problem, progress, progress.status, s)
         params = progress.params
-    if opt.basin_hops and not progress.succeeded(problem):
+    if opt.basin_hops and hop_at_end and not progress.succeeded(problem):
         if progress.stage <= last:
             # checkpoint the end of the stages, so that a resume repeats only the (deterministic) hops
             progress.stage, progress.base = last + 1, progress.params
             if checkpoint is not None and opt.checkpoint_every:
                 checkpoint(progress)
         progress.status = basin_hop(problem, progress, progress.status, last)
-    return progress.result(progress.status, time.perf_counter() - t0, progress.succeeded(problem))
+    seconds = time.perf_counter() - t0
+    return progress.result(progress.status, seconds, progress.succeeded(problem, final=True))
 
 
 def _raises_level(problem: FitProblem, s: int) -> bool:

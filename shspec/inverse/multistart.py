@@ -249,7 +249,8 @@ def _run_starts(problem: FitProblem, executor, finished: list, current, done: se
                     save_checkpoint(options.checkpoint_path, fp, finished, current, target.eigenvalues)
                 running = current is not None and current.index not in {r.index for r in finished}
                 if running and current.params is not None:
-                    finished.append(current.result("interrupted", current.seconds, current.succeeded(problem)))
+                    finished.append(current.result("interrupted", current.seconds,
+                                                   current.succeeded(problem, final=True)))
                 display.message("interrupted: the best state so far is kept")
                 break
     return interrupted

@@ -48,6 +48,14 @@ class FitOptions:
         model's own to this relative tolerance (:meth:`~shspec.spectral_model.SpectralModel.stage_basis`, chosen
         once per fit at a reference ρ); a stage with :attr:`Stage.hops` uses ``success_tol`` if smaller.  None:
         every stage on the model's own.  Default 1e-5.
+    search_basis_tol : float or None
+        The last stage of the schedule and its basin hops (the search) run on the coarsest basis on which its
+        eigenvalues agree with the model's own to this relative tolerance (chosen like the stage bases), and count as
+        done at a residual of :data:`~shspec.inverse.problem.SEARCH_MARGIN` times it; the same stage then runs
+        again on the model's own basis, which polishes the result to ``success_tol`` (no hops there).  The model's
+        basis may then be chosen for the success tolerance (``shspec fit`` plans it so) while every search
+        iteration costs what the search needs.  None, or when only the model's basis agrees: the last stage on the
+        model's own basis.  Default 1e-6.
     starts : int
         Number of random symmetry-broken starts (default 4).
     stop_at_success : bool
@@ -114,6 +122,7 @@ class FitOptions:
     area: str = "auto"
     schedule: tuple | None = None
     stage_basis_tol: float | None = 1e-5
+    search_basis_tol: float | None = 1e-6
     starts: int = 4
     stop_at_success: bool = True
     seed: int = 0
@@ -151,6 +160,8 @@ class FitOptions:
         check_float(self.reg, "reg", minimum=0.0)
         if self.stage_basis_tol is not None:
             check_float(self.stage_basis_tol, "stage_basis_tol", positive=True)
+        if self.search_basis_tol is not None:
+            check_float(self.search_basis_tol, "search_basis_tol", positive=True)
         check_int(self.starts, "starts", minimum=1)
         check_int(self.seed, "seed", minimum=0)
         check_float(self.start_amplitude, "start_amplitude", positive=True)

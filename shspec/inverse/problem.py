@@ -11,12 +11,12 @@ its new level, ``default_rng([seed, i, stage + 1])``: a run is reproducible, and
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..checks import finite_array
-from ..errors import InvalidArgumentError
+from ..errors import InvalidArgumentError, NotPositiveError
 from ..spectral_model import SpectralModel
 from ..targets import Target
 from .energy import Objective, eigenvalue_weights
@@ -25,11 +25,16 @@ from .parametrization import Parametrization
 from .results import StartResult
 from .schedule import Stage, default_schedule
 
-__all__ = ["FitProblem", "StartProgress", "consistent_with_errors", "CHI2_SIGMAS"]
+__all__ = ["FitProblem", "StartProgress", "consistent_with_errors", "CHI2_SIGMAS", "SEARCH_MARGIN"]
 
 #: A fit is consistent with a target's errors when χ²/ν ≤ 1 + CHI2_SIGMAS·√(2/ν), ν = K − 1 eigenvalues: the mean
 #: of χ²/ν is 1 and its standard deviation √(2/ν) for Gaussian errors.
 CHI2_SIGMAS = 3.0
+
+#: The search stage of an exact target is done at a residual of SEARCH_MARGIN·``search_basis_tol``: its basis agrees
+#: with the model's own to that tolerance at a reference ρ, not at the truth, so the truth's residual there may be a
+#: few times larger (FitOptions.search_basis_tol).
+SEARCH_MARGIN = 10.0
 
 
 def consistent_with_errors(eigenvalues, target, errors) -> bool:
@@ -102,6 +107,16 @@ class FitProblem:
                       else model.stage_basis(st.lmax_factor, st.numeig or target.numeig,
                                              min(tol, options.success_tol) if st.hops else tol)
                       for s, st in enumerate(self.stages)]
+        #: index of the search stage (None: none): the last stage of the schedule and its basin hops run on the
+        #: coarsest basis good to ``search_basis_tol``, and a copy of it on the model's own basis polishes the result
+        self.search = None
+        if options.search_basis_tol is not None and self.stages[-1].hops is False:
+            st = self.stages[-1]
+            basis = model.stage_basis(st.lmax_factor, st.numeig or target.numeig, options.search_basis_tol)
+            if basis is not None:
+                self.stages = (*self.stages[:-1], replace(st, hops=True), st)
+                self.bases = [*self.bases[:-1], basis, None]
+                self.search = len(self.stages) - 2
         if options.progress and any(b is not None for b in self.bases):
             print("stage bases (degree:eigenvalues -> basis degree): " + ", ".join(
                 f"{st.lmax_factor}:{st.numeig or target.numeig} -> {b}" for st, b in zip(self.stages, self.bases)
@@ -136,11 +151,30 @@ class FitProblem:
         errors = None if self.target.errors is None else self.target.errors[:k]
         return Objective(sub, lam, eigenvalue_weights(lam, self.options.weights, errors), par, self.options.reg)
 
-    def succeeded(self, eigenvalues, relative_residual: float) -> bool:
+    def search_basis_holds(self, params: np.ndarray) -> bool:
+        """Whether the search stage's basis holds at ``params`` (nparams,), not only at the reference it was chosen
+        at: its eigenvalues agree with those on the model's own basis to :data:`SEARCH_MARGIN` times
+        ``search_basis_tol`` (two eigenvalue solves).  A ρ far from the starts' law (a log factor of large
+        amplitude, say) may need more of the basis than the reference did; its search then runs on the model's
+        own basis."""
+        s = self.search
+        try:
+            coarse, fine = self.objective(s, params), self.objective(s + 1, params)
+            lam, ref = coarse.values(coarse.initial()).eigenvalues, fine.values(fine.initial()).eigenvalues
+        except NotPositiveError:
+            return False
+        return bool(np.max(np.abs(lam[1:] / ref[1:] - 1.0)) <= SEARCH_MARGIN * self.options.search_basis_tol)
+
+    def succeeded(self, eigenvalues, relative_residual: float, stage: int | None = None) -> bool:
         """Whether matched eigenvalues (k,) fit the target: to ``success_tol`` (relative) for an exact target; for a
-        target with errors, residuals consistent with them (:func:`consistent_with_errors`)."""
+        target with errors, residuals consistent with them (:func:`consistent_with_errors`).  On the search stage
+        (``stage`` = :attr:`search`) an exact target is met at what its basis allows: :data:`SEARCH_MARGIN` times
+        ``search_basis_tol``."""
         if self.target.errors is None:
-            return bool(relative_residual <= self.options.success_tol)
+            tol = self.options.success_tol
+            if stage is not None and stage == self.search:
+                tol = max(tol, SEARCH_MARGIN * self.options.search_basis_tol)
+            return bool(relative_residual <= tol)
         k = np.size(eigenvalues)
         return consistent_with_errors(eigenvalues, self.target.eigenvalues[:k], self.target.errors[:k])
 
@@ -197,7 +231,9 @@ class StartProgress:
                            history=np.array(self.history, dtype=float).reshape(-1, 3),
                            eigenvalues=np.array(self.eigenvalues), success=bool(success))
 
-    def succeeded(self, problem: FitProblem) -> bool:
-        """Whether the start's state so far fits the target (:meth:`FitProblem.succeeded`)."""
-        return self.eigenvalues is not None and problem.succeeded(self.eigenvalues, self.relative_residual)
+    def succeeded(self, problem: FitProblem, final: bool = False) -> bool:
+        """Whether the start's state so far fits the target (:meth:`FitProblem.succeeded`): as its current stage
+        asks, or, ``final``, as a result must (the search stage's allowance does not count)."""
+        return self.eigenvalues is not None and problem.succeeded(self.eigenvalues, self.relative_residual,
+                                                                  None if final else self.stage)
 

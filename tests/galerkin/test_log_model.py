@@ -113,6 +113,6 @@ def test_cli_fits_log_rho(tmp_path):
     spectrum = tmp_path / "s.txt"
     np.savetxt(spectrum, model.eigenvalues(_random_u(4, 2, 0.5), 16))
     assert main(["fit", "--target", f"spectrum:{spectrum}", "--model", "log", "--lmax", "8", "--lmax-factor", "2",
-                 "--numeig", "16", "--starts", "1", "--quiet", "--out", str(tmp_path / "fit")]) == 0
+                 "--numeig", "16", "--starts", "2", "--quiet", "--out", str(tmp_path / "fit")]) == 0
     summary = json.loads((tmp_path / "fit" / "summary.json").read_text())
     assert summary["model"].startswith("log-harmonic Lb=8 La=2") and summary["relative_residual"] < 1e-10

@@ -4,6 +4,7 @@ schedules, the PL path on the study's star surfaces, and the command line."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import matplotlib
 
@@ -15,7 +16,7 @@ import pytest
 from shspec import ConformalFactor, HarmonicModel
 from shspec.errors import InvalidArgumentError
 from shspec.cli import main
-from shspec.inverse import FitOptions, Stage, align, blob_factor, fit, harmonic_target
+from shspec.inverse import FitOptions, Stage, align, blob_factor, default_schedule, fit, harmonic_target
 from shspec.sphere.random import random_centred_coefficients
 from shspec.inverse import optimize as optimize_module
 from shspec.inverse.energy import Objective, eigenvalue_weights
@@ -40,6 +41,9 @@ def recovered():
 def test_best_start_recovers_spectrum_and_factor(recovered):
     truth, target, result = recovered
     assert result.best.relative_residual <= 1e-10
+    # the search ran on a smaller basis, which cannot reach the tolerance; the polish on Lb did
+    hist = result.best.history
+    assert set(hist[:, 0]) == {0, 1} and hist[hist[:, 0] == 0][-1, 2] > 1e-9
     assert result.success_count >= 1
     assert len(result.starts) == 3 and set(result.solutions) <= {0, 1, 2}
     al = align(result.factor(), truth)
@@ -535,9 +539,15 @@ def test_cli_fit_without_numeig_plans_k_and_lmax(tmp_path, capsys):
                  "--max-iter", "3", "--basin-hops", "0", "--schedule", "none", "--out", str(out)]) == 0
     assert "--numeig not given: K = " in capsys.readouterr().err
     summary = json.loads((out / "summary.json").read_text())
-    plan = plan_numeig(3, random_centred_coefficients(0, 3, 0.2), noise=1e-13, accuracy=1e-8)
+    plan = plan_numeig(3, random_centred_coefficients(0, 3, 0.2), noise=1e-13, accuracy=1e-8, basis_tol=1e-10)
     assert summary["numeig_plan"]["numeig"] == plan.numeig == summary["numeig"]
     assert summary["numeig_plan"]["lmax"] == plan.lmax
+    # the basis is planned for the success tolerance: the truth itself meets it there, the accurate spectrum taken
+    # 8 degrees higher (on a basis converged to 1e-6 only, it would not)
+    accurate = HarmonicModel(plan.lmax + 8, 3).eigenvalues(truth, plan.numeig)[1:]
+    assert np.max(np.abs(HarmonicModel(plan.lmax, 3).eigenvalues(truth, plan.numeig)[1:] / accurate - 1)) <= 1e-10
+    loose = plan_numeig(3, random_centred_coefficients(0, 3, 0.2), noise=1e-13, accuracy=1e-8)
+    assert np.max(np.abs(HarmonicModel(loose.lmax, 3).eigenvalues(truth, plan.numeig)[1:] / accurate - 1)) > 1e-10
 
 
 def test_grid_hop_undoes_a_quarter_turn_when_the_cheap_moves_find_nothing(monkeypatch):
@@ -704,12 +714,25 @@ def test_early_stages_run_on_their_own_basis_and_the_last_on_the_model():
 
     model = HarmonicModel(20, 6)
     target = harmonic_target(blob_factor(), 20, 120)
+    plain = FitProblem(model, target, FitOptions(search_basis_tol=None))
+    x = plain.initial(np.random.default_rng(0))
+    assert plain.search is None and plain.stages == default_schedule(model, 120)
+    assert plain.bases[-1] is None and plain.objective(len(plain.stages) - 1, x).model is model
+    assert 6 <= plain.bases[0] < 20 and plain.objective(0, x).model.lmax == plain.bases[0]
+    assert all(b is None or b < 20 for b in plain.bases)
+    assert FitProblem(model, target, FitOptions(stage_basis_tol=None, search_basis_tol=None)).bases == [
+        None] * len(plain.stages)
+    # by default the last stage searches (and hops) on a smaller basis good to 1e-6, and a copy of it on the
+    # model's own basis polishes; only the polish must meet success_tol
     problem = FitProblem(model, target, FitOptions())
-    x = problem.initial(np.random.default_rng(0))
-    assert problem.bases[-1] is None and problem.objective(len(problem.stages) - 1, x).model is model
-    assert 6 <= problem.bases[0] < 20 and problem.objective(0, x).model.lmax == problem.bases[0]
-    assert all(b is None or b < 20 for b in problem.bases)
-    assert FitProblem(model, target, FitOptions(stage_basis_tol=None)).bases == [None] * len(problem.stages)
+    s = problem.search
+    assert s == len(plain.stages) - 1 and problem.stages == (*plain.stages[:-1], replace(plain.stages[-1], hops=True),
+                                                             plain.stages[-1])
+    assert problem.bases[:-2] == plain.bases[:-1] and problem.bases[-1] is None
+    assert model.stage_basis(6, 120, 1e-6) == problem.bases[s] < 20
+    ev = target.eigenvalues
+    assert problem.succeeded(ev, 9e-6, s) and not problem.succeeded(ev, 2e-5, s)
+    assert not problem.succeeded(ev, 9e-6, s + 1) and not problem.succeeded(ev, 9e-6)
 
 
 def test_models_without_coarser_bases_say_so():
@@ -806,3 +829,25 @@ def test_an_underdetermined_fit_gives_no_error_estimate(small):
     ident = result.identifiability()
     assert ident.underdetermined and ident.estimated_error is not None and ident.error_estimate is None
     assert result.identifiability().to_dict()["estimated_error"] is None
+
+
+def test_the_search_basis_is_checked_at_the_fit_and_where_it_fails_the_hops_follow_the_polish(monkeypatch, capsys):
+    """The search stage's basis is chosen at a reference ρ; at a ρ far from it (a strong Möbius boost) it does not
+    hold, and then the search does not hop on it: the hops run after the polish, on the model's own basis."""
+    from shspec.inverse.problem import FitProblem
+
+    problem = FitProblem(HarmonicModel(20, 6), harmonic_target(blob_factor(), 20, 120), FitOptions())
+    assert problem.search_basis_holds(blob_factor().coefficients)
+    assert not problem.search_basis_holds(ConformalFactor.mobius_boost(1.5, 6).coefficients)
+
+    target = harmonic_target(blob_factor(), 16, 30)
+    opts = FitOptions(starts=1, schedule=(Stage(6),), max_iter=2, basin_hops=1, hop_tries=2, hop_iter=2,
+                      progress=True)
+    for holds in (True, False):
+        monkeypatch.setattr(FitProblem, "search_basis_holds", lambda self, params: holds)
+        result = fit(target, HarmonicModel(16, 6), opts)
+        err = capsys.readouterr().err
+        assert set(result.starts[0].history[:, 0]) == {0, 1}  # the search, then the polish
+        assert ("start 0 stage 0 basin hop 1" in err) == holds
+        assert ("start 0 basin hop 1" in err) == (not holds)
+        assert ("its basis does not hold at this rho" in err) == (not holds)
