@@ -383,3 +383,20 @@ def test_isospectral_points_of_a_harmonic_rho_and_bad_directions():
         isospectral_point(model, a, np.full(24, 0.1), k)
     with pytest.raises(InvalidArgumentError, match="direction must be finite; entry 0 is nan"):
         isospectral_point(model, a, np.full(25, np.nan), k)
+
+
+@pytest.mark.parametrize("lmax", [10, 12])
+def test_a_converged_fit_estimates_the_error_its_basis_leaves(lmax):
+    """A spectrum solved on Lb = 20 and fitted on a smaller Lb: the basis's error is the data's error, which the fit
+    absorbs into ρ.  At the fit's minimum the residual's part in the range of the Jacobian vanishes, so only the
+    residual standard error can show it: the estimate must cover the aligned error, and not by more than 5x."""
+    from shspec import ConformalFactor
+    from shspec.inverse import FitOptions, Target, align, fit
+
+    truth = random_centred_coefficients(3, 4, 0.2)
+    target = Target("fine", HarmonicModel(20, 4).eigenvalues(truth, 36), truth=ConformalFactor(truth))
+    result = fit(target, HarmonicModel(lmax, 4), FitOptions(starts=2, search_basis_tol=None, success_tol=1e-4))
+    assert result.best.success and result.best.relative_residual > 1e-8  # the basis's error is seen
+    measured = align(result.factor(), truth).relative_error
+    estimate = result.identifiability().error_estimate
+    assert measured <= estimate <= 5 * measured

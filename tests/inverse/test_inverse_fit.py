@@ -760,9 +760,8 @@ def test_cli_stage_basis_tolerance_takes_a_positive_number_or_none():
 
 def test_a_fit_stopped_in_a_wrong_basin_reports_its_error_as_unknown():
     """From the blob with one degree block turned (an escape move), LM without hops ends in a local minimum (64
-    eigenvalues, degree 6): the linearized estimate there is tiny (at a stationary point the residual is nearly
-    orthogonal to the Jacobian's range) while rho is off by percent, so the result must call its error unknown
-    instead of printing that number."""
+    eigenvalues, degree 6): the linearized estimate there is several times too small while rho is off by percent,
+    so the result must call its error unknown instead of printing that number."""
     from shspec.inverse.output import summary
 
     target, model = harmonic_target(blob_factor(), 12, 64), HarmonicModel(12, 6)
@@ -772,7 +771,8 @@ def test_a_fit_stopped_in_a_wrong_basin_reports_its_error_as_unknown():
     assert not result.best.success and result.best.relative_residual > 1e-6
     measured = align(result.factor(), target.truth).relative_error
     ident = result.identifiability()
-    assert measured > 0.01 and ident.estimated_error < 0.01 * measured  # what used to be printed: far too small
+    # the linearized estimate is far too small there (0.006 against 0.026): a local minimum is no noisy solution
+    assert measured > 0.01 and ident.estimated_error < 0.5 * measured
     assert ident.converged is False and ident.error_estimate is None
     assert "unknown" in ident.statement() and "estimated relative error" not in ident.statement()
     record = summary(result)["identifiability"]
