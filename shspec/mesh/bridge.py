@@ -11,7 +11,7 @@ import numpy as np
 
 from ..checks import check_int
 from ..errors import InvalidArgumentError, MeshError
-from ..sphere.evaluate import harmonic_matrix, weighted_expansion
+from ..sphere.evaluate import harmonic_matrix, weighted_expansion, weighted_misfit
 from ..sphere.harmonics import check_degree
 from .cotan import vertex_areas
 from .triangle_mesh import TriangleMesh
@@ -102,6 +102,4 @@ def fit_harmonic(sphere: TriangleMesh, values, lmax: int, method: str = "lsq") -
         return HarmonicFit(a, lmax, method, residual)
     Y = harmonic_matrix(sphere.vertices, lmax)
     a = Y.T @ (w * f)
-    r = f - Y @ a
-    residual = float(np.sqrt(np.sum(w * r * r) / max(np.sum(w * f * f), np.finfo(float).tiny)))
-    return HarmonicFit(a, lmax, method, residual)
+    return HarmonicFit(a, lmax, method, weighted_misfit(f, Y @ a, w))

@@ -17,7 +17,7 @@ from ..errors import InvalidArgumentError
 from ..threads import PYSHTOOLS_LOCK
 from .harmonics import as_coefficients, check_degree, degree_order, vector_to_cilm
 
-__all__ = ["points_to_angles", "harmonic_matrix", "sample_harmonic", "weighted_expansion"]
+__all__ = ["points_to_angles", "harmonic_matrix", "sample_harmonic", "weighted_expansion", "weighted_misfit"]
 
 
 def _points(points) -> np.ndarray:
@@ -116,5 +116,11 @@ def weighted_expansion(points, weights, values, lmax: int) -> tuple[np.ndarray, 
         raise InvalidArgumentError(f"lmax = {lmax} needs {y.shape[1]} coefficients; {y.shape[0]} points are too few")
     sw = np.sqrt(w)
     a = np.linalg.lstsq(sw[:, None] * y, sw * f, rcond=None)[0]
-    r = f - y @ a
-    return a, float(np.sqrt(np.sum(w * r * r) / max(np.sum(w * f * f), np.finfo(float).tiny)))
+    return a, weighted_misfit(f, y @ a, w)
+
+
+def weighted_misfit(values, fitted, weights) -> float:
+    """‖f − g‖_w / ‖f‖_w: the relative weighted L2 misfit of fitted values g (n,) to values f (n,) with weights
+    w (n,)."""
+    r = values - fitted
+    return float(np.sqrt(np.sum(weights * r * r) / max(np.sum(weights * values * values), np.finfo(float).tiny)))
