@@ -102,8 +102,9 @@ def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finish
                     first = finished[-1].index
                     skipped = [f for f in waiting if futures[f] > first]
                     if skipped:
-                        display.message(f"start {first} succeeded: the {len(skipped)} start(s) after it are skipped "
-                                        "(stop_at_success)")
+                        # a process pool may already run a start it queued: its result is dropped, not awaited
+                        display.message(f"start {first} succeeded: the {len(skipped)} start(s) after it are not "
+                                        "waited for and their results are dropped (stop_at_success)")
             if stop and first < math.inf:
                 for future in [f for f in waiting if futures[f] > first]:
                     future.cancel()  # a running start of a process pool goes on there, unwaited for

@@ -110,7 +110,7 @@ class FitProblem:
         #: index of the search stage (None: none): the last stage of the schedule and its basin hops run on the
         #: coarsest basis good to ``search_basis_tol``, and a copy of it on the model's own basis polishes the result
         self.search = None
-        if options.search_basis_tol is not None and self.stages[-1].hops is False:
+        if options.search_basis_tol is not None and not self.stages[-1].hops:
             st = self.stages[-1]
             basis = model.stage_basis(st.lmax_factor, st.numeig or target.numeig, options.search_basis_tol)
             if basis is not None:
