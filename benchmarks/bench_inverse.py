@@ -33,7 +33,7 @@ import numpy as np  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 from shspec import HarmonicModel, __version__  # noqa: E402
-from shspec.parallel import make_executor  # noqa: E402
+from shspec.parallel import make_executor, stop_executor  # noqa: E402
 from shspec.inverse import (FitOptions, align, blob_factor, fit, harmonic_target, mesh_target,  # noqa: E402
                             degree_ramp, numeig_ramp)
 from shspec.sphere.random import random_centred_coefficients  # noqa: E402
@@ -140,8 +140,11 @@ def _goal_summary(result, truth, options_text):
 def _fit_measured(target, model, options, workers):
     """``fit`` on ``workers`` processes, and the run's record: workers, wall time and load average around it."""
     load, t0 = list(os.getloadavg()), time.perf_counter()
-    with make_executor(workers) as ex:
+    ex = make_executor(workers)
+    try:
         result = fit(target, model, options, executor=ex)
+    finally:
+        stop_executor(ex)  # as shspec fit: the starts a first success made unneeded are not waited for
     return result, {"workers": workers, "wall_seconds": time.perf_counter() - t0,
                     "load_average_before_after": [load, list(os.getloadavg())]}
 
