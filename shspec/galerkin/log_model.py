@@ -34,7 +34,7 @@ from ..checks import finite_array
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
 from ..spectral_model import SpectralModel, Spectrum
-from ..sphere.evaluate import harmonic_matrix, sample_harmonic, weighted_expansion
+from ..sphere.evaluate import harmonic_matrix, sample_harmonic, weighted_expansion, weighted_misfit
 from ..sphere.factor import ConformalFactor
 from ..sphere.grid import GLQGrid, evaluate_on_grid, expand_grid, glq_grid
 from ..sphere.harmonics import check_degree, degrees, ncoeffs
@@ -300,6 +300,5 @@ def log_expansion(points, weights, values, lmax_factor: int) -> tuple[np.ndarray
     if not np.all(rho > 0):
         raise NotPositiveError("rho must be > 0 at every point to be expanded in log rho")
     u, _ = weighted_expansion(points, weights, np.log(rho), lmax_factor)
-    w = np.asarray(weights, dtype=float)
     fitted = np.exp(sample_harmonic(u, points))  # no second (n, (La + 1)²) matrix
-    return u, float(np.sqrt(w @ (fitted - rho) ** 2 / (w @ rho ** 2)))
+    return u, weighted_misfit(rho, fitted, np.asarray(weights, dtype=float))
