@@ -22,7 +22,7 @@ from ..errors import BeyondBasisError, InvalidArgumentError, OutputError
 from ..galerkin import HarmonicModel, LogHarmonicModel
 from .help_format import HelpFormatter
 from ..inverse.identifiability import identifiability
-from ..inverse.planning import plan_numeig
+from ..inverse.planning import plan_fit
 from ..inverse.surface_plan import TRUTH_DEGREE, default_numeig, plan_surface_fit
 from ..inverse.checkpoint import claim_checkpoint
 from ..inverse.multistart import fit
@@ -113,9 +113,6 @@ def read_truth(path: Path) -> ConformalFactor:
     rho.check_positive()
     return rho
 
-
-#: Relative L2 accuracy of rho that the planned K (no --numeig) gives a fit reaching its residual_tol.
-PLANNED_ACCURACY = 1e-8
 
 #: The discretizations ``--model`` chooses from: name -> builder(args, target).
 MODELS = {"harmonic": _harmonic, "log": _log_harmonic, "mesh": _mesh}
@@ -286,13 +283,8 @@ def _plan(args) -> dict | None:
         args.numeig = max(2, round(MESH_NUMEIG_FRACTION * n)) if 0 < n <= MESH_FRACTION_VERTICES else "auto"
         args.lmax = 30 if args.lmax is None else args.lmax
         return None
-    # the log model takes the plan of a harmonic rho of the same degree: the same number of unknowns.  The basis is
-    # converged to the success tolerance, so that the truth itself succeeds on it (the change from Lb - 2
-    # overstates the error: at degrees 8, 10 and 12 six random truths were off by at most a sixth of it); the
-    # search runs on a smaller basis and only the polish on this one (FitOptions.search_basis_tol)
-    defaults = FitOptions()
-    plan = plan_numeig(args.lmax_factor, random_centred_coefficients(args.seed, args.lmax_factor, 0.2),
-                       noise=defaults.residual_tol, accuracy=PLANNED_ACCURACY, basis_tol=defaults.success_tol)
+    # the log model takes the plan of a harmonic rho of the same degree: the same number of unknowns
+    plan = plan_fit(args.lmax_factor, random_centred_coefficients(args.seed, args.lmax_factor, 0.2))
     if plan.numeig is None:
         raise InvalidArgumentError(plan.statement() + "; give --numeig")
     args.numeig = plan.numeig

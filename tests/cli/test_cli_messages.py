@@ -124,7 +124,7 @@ def test_a_mistyped_target_is_named_before_any_planning(tmp_path, capsys, monkey
     def no_planning(*args, **kwargs):  # planning K for La = 15 takes a minute: a typo must not wait for it
         raise AssertionError("planned before the target was checked")
 
-    monkeypatch.setattr(cli_fit, "plan_numeig", no_planning)
+    monkeypatch.setattr(cli_fit, "plan_fit", no_planning)
     for target, words in (("blobb", "unknown target 'blobb'"), ("mesh:nonexistent_mesh", "no such file"),
                           ("spectrum:" + str(tmp_path / "none.txt"), "no such file")):
         assert main(["fit", "--target", target, "--out", str(tmp_path / "out")]) == 1
