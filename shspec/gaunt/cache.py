@@ -199,11 +199,14 @@ def _write(table: GauntTable, path: Path, build_seconds: float) -> Path:
 
 
 #: Tables read in this process, by (path, modification time, size): a file is read and validated once until it
-#: changes; the few most recent are kept (with their assembly plans, which cost as much as the read).
+#: changes; the few most recent are kept (with their assembly plans and restrictions, which cost as much as the read).
 _MEMORY: "OrderedDict[tuple, GauntTable]" = OrderedDict()
 _MEMORY_ENTRIES = 4
 _MEMORY_LOCK = threading.Lock()
 os.register_at_fork(after_in_child=_MEMORY_LOCK._at_fork_reinit)  # a thread of the parent may have held it
+#: The file whose restriction served a table that has no file of its own, by that missing file's path: a repeated
+#: load skips the scan of the cache directory (most of the cost of a small forward solve from a covering table).
+_COVERED: dict[str, Path] = {}
 
 
 def _read(path: Path, lmax: int | None = None, lmax_factor: int | None = None) -> GauntTable:
@@ -407,12 +410,21 @@ def load_table(lmax: int, lmax_factor: int, directory: str | os.PathLike | None 
     path = table_path(lmax, lmax_factor, directory)
     if path.exists():
         return _read(path, lmax, lmax_factor)
+    missing = str(path.resolve())
+    if missing in _COVERED:
+        try:
+            return _read(_COVERED[missing]).restrict(lmax, lmax_factor)
+        except (OSError, CorruptTableError, TableMismatchError):
+            _COVERED.pop(missing, None)  # removed or changed since: the scan below finds what covers it now
     for info in list_tables(directory):
         if info.problem is None and info.lmax >= lmax and info.lmax_factor >= lmax_factor:
             try:
-                return _read(info.path).restrict(lmax, lmax_factor)
+                table = _read(info.path).restrict(lmax, lmax_factor)
             except (CorruptTableError, TableMismatchError) as exc:
                 warnings.warn(f"skipping a damaged cached table: {exc}", stacklevel=2)
+                continue
+            _COVERED[missing] = info.path
+            return table
     raise FileNotFoundError(f"no cached Gaunt table covers ({lmax},{lmax_factor}) in {cache_dir(directory)}")
 
 

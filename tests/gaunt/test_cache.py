@@ -39,6 +39,30 @@ def test_larger_table_serves_smaller(tmp_path):
         get_table(13, 5, cache_dir=tmp_path, build=False)
 
 
+
+
+def test_a_covered_table_is_found_again_without_a_scan_until_its_source_changes(tmp_path, monkeypatch):
+    import shspec.gaunt.cache as cache
+
+    get_table(12, 8, cache_dir=tmp_path)
+    first = load_table(9, 5, tmp_path)
+
+    def no_scan(*args, **kwargs):
+        raise AssertionError("the cache directory was scanned again")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(cache, "list_tables", no_scan)
+        assert load_table(9, 5, tmp_path) is first
+    # the source damaged since: never used, and the scan that follows skips it
+    path = table_path(12, 8, tmp_path)
+    with h5py.File(path, "r+") as f:
+        f["values"][5] += 1e-12
+    with pytest.warns(UserWarning, match="damaged"), pytest.raises(FileNotFoundError):
+        load_table(9, 5, tmp_path)
+    # removed, and another table covers it now
+    path.unlink()
+    get_table(11, 6, cache_dir=tmp_path)
+    np.testing.assert_allclose(load_table(9, 5, tmp_path).values, first.values, rtol=0, atol=2e-15)
 def _flip_byte(path, where):
     data = bytearray(path.read_bytes())
     data[int(len(data) * where)] ^= 0xFF
