@@ -2,9 +2,9 @@
 
 Cold: LAPACK through :func:`scipy.linalg.eigh` on the upper triangle.  Which driver is faster depends on the share of
 the spectrum wanted: the MRRR subset driver ('evr') for few eigenpairs, the full divide and conquer ('evd') from
-about a fifth of them (one thread, OpenBLAS; measured, :doc:`/benchmarks`: N = 960 crosses over at
-k ≈ 0.23·N, N = 440 at 0.15·N, N = 1680 at 0.2·N; at (Lb, k) = (24, 300) 'evd' takes 0.45× the time of 'evr', at
-(60, 500) 1.5×).
+about 0.28 of them (one thread, OpenBLAS 0.3.30; measured, :doc:`/benchmarks`: N = 528 crosses over at k ≈ 0.27·N,
+N = 960 at 0.28·N, N = 1680 at 0.3·N; at (Lb, k) = (24, 300) 'evd' takes 0.45× the time of 'evr', at (60, 500)
+1.5×).
 
 Warm: a fit moves ρ a little between evaluations, so the previous eigenvectors (plus a few *guard* vectors beyond the
 wanted ones) nearly span the new invariant subspace.  Rayleigh–Ritz on them costs one symmetric matrix product and an
@@ -31,7 +31,7 @@ from scipy.linalg.blas import dsymm
 __all__ = ["EVD_SHARE", "WARM_TOLERANCE", "guard_count", "cold_eigh", "warm_eigh"]
 
 #: Above this share of wanted eigenpairs (count / size) the full divide and conquer beats the MRRR subset driver.
-EVD_SHARE = 0.2
+EVD_SHARE = 0.28
 #: The certified relative eigenvalue error a warm start must reach (the cold solve is exact to ~1e-14 relative).
 WARM_TOLERANCE = 1e-14
 

@@ -73,7 +73,8 @@ class SpectrumResult(Spectrum):
         The factor coefficients a solved for (what a warm start compares with).
     reduced_vectors : (N−1, k−1+g) float array or None
         Orthonormal eigenvectors u of the reduced problem H u = μ u (module docstring), μ descending, with g guard
-        vectors beyond the k−1 wanted: the seed of a warm start (:func:`shspec.galerkin.eigen.warm_eigh`).
+        vectors beyond the k−1 wanted: the seed of a warm start (:func:`shspec.galerkin.eigen.warm_eigh`); g = 0
+        from :func:`spectrum`, which no solve warm-starts from.
     solver : str
         How it was solved: 'evr' or 'evd' (the cold LAPACK driver), 'warm' (certified Rayleigh–Ritz), '' (k = 1).
     """
@@ -155,14 +156,16 @@ class HarmonicModel(SpectralModel):
         """The full symmetric mass matrix M(a), (N, N)."""
         return self.table.mass_matrix(self._params(params))
 
-    def spectrum(self, params, k: int, *, start: Spectrum | None = None) -> SpectrumResult:
+    def spectrum(self, params, k: int, *, start: Spectrum | None = None, guards: bool = True) -> SpectrumResult:
         """First k eigenpairs (λ₀ = 0 included) for the factor coefficients ``params`` or a ConformalFactor.
 
         ``start``: the spectrum of a nearby ρ from this model (the previous evaluation of a fit).  Its eigenvectors
         and guard vectors seed a certified Rayleigh–Ritz step (:func:`shspec.galerkin.eigen.warm_eigh`), used when
         ρ moved by at most :data:`WARM_GATE` (relative, in the coefficients) and the residual bound certifies the
         eigenvalues to 1e-14 relative; otherwise, and for a ``start`` of another model or size, the cold solve.
-        The result says which in ``solver``.
+        The result says which in ``solver``.  ``guards`` False: solve for the k eigenpairs alone, not the guard
+        vectors a later warm start needs (a result that cannot be a ``start``; the MRRR driver is faster by their
+        share).
         """
         if start is not None and not isinstance(start, Spectrum):
             raise InvalidArgumentError(f"start must be a Spectrum or None, got {type(start).__name__}")
@@ -179,7 +182,7 @@ class HarmonicModel(SpectralModel):
         if self._warm_usable(start, a, k):
             ritz = warm_eigh(h, start.reduced_vectors, k - 1)
         if ritz is None:
-            mu, u, solver = cold_eigh(h, k - 1 + guard_count(k - 1, n - 1))
+            mu, u, solver = cold_eigh(h, k - 1 + (guard_count(k - 1, n - 1) if guards else 0))
         else:
             mu, u = ritz
         self._check_reduced(mu[k - 2])

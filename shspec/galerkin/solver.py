@@ -88,7 +88,7 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
         low = cut.check_positive()
     except NotPositiveError as exc:
         raise NotPositiveError(f"{exc}{_truncation_cause(factor, model.lmax_factor)}") from None
-    result = model.spectrum(cut, k)
+    result = model.spectrum(cut, k, guards=False)  # a single solve: nothing warm-starts from it
     if truncation_tol is None:
         return result
     errors, decays = basis_truncation(result.eigenvalues, result.eigenvectors, cut.coefficients)

@@ -140,3 +140,13 @@ def test_the_objective_warm_starts_from_its_last_evaluation(rng):
     assert calls[0][0] is None and calls[1][1] == "warm"
     np.testing.assert_allclose(again.residuals, first.residuals, rtol=0, atol=1e-13)  # relative eigenvalue errors
     np.testing.assert_allclose(again.jacobian, first.jacobian, rtol=0, atol=1e-11 * np.abs(first.jacobian).max())
+
+
+def test_a_solve_without_guard_vectors_is_the_same_and_never_a_warm_start(model, rng):
+    a = random_factor_coefficients(rng, 6, amplitude=0.3)
+    with_guards = model.spectrum(a, K)
+    alone = model.spectrum(a, K, guards=False)
+    assert with_guards.reduced_vectors.shape[1] > K - 1 == alone.reduced_vectors.shape[1]
+    np.testing.assert_allclose(alone.eigenvalues, with_guards.eigenvalues, rtol=1e-13, atol=1e-13)
+    check_eigenpairs(model, a, alone, 1e-12)
+    assert model.spectrum(a, K, start=alone).solver != "warm"  # its vectors leave no room to certify the gap
