@@ -5,7 +5,8 @@ spectrum written by ``shspec forward`` on a finer basis than the fit's (the accu
 then ``shspec fit --target spectrum:FILE --lmax-factor La --truth FILE --out DIR`` with every other option at its
 default (the flags named per case), in a fresh process on the machine's cores.  Recorded per case: the wall time
 of the fit command, the load average before and after, whether a start succeeded, the starts run, and the error
-of ρ after Möbius and O(3) alignment (relative L2 and per-degree power) from its ``summary.json``.
+of ρ after Möbius and O(3) alignment (relative L2 and per-degree power) from its ``summary.json``.  A fit still
+running at its goal's wall time is stopped there by Ctrl-C (the goal is missed by then) and its kept state recorded.
 
 Cases (``--only TEXT`` runs those whose name contains TEXT; cases not run keep their earlier records):
 
@@ -22,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -58,14 +60,24 @@ def run_case(name: str, work: Path) -> dict:
     command = ["fit", "--target", f"spectrum:{spectrum}", "--lmax-factor", str(la), "--truth", str(rho),
                "--out", str(out), "--quiet", *flags]
     load, t0 = load_average(), time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "shspec", *command], capture_output=True, text=True)
+    fit = subprocess.Popen([sys.executable, "-m", "shspec", *command], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        _, stderr = fit.communicate(timeout=goal)
+        stopped = False
+    except subprocess.TimeoutExpired:
+        # past the goal the goal is missed anyway: Ctrl-C, as a user would, and record the state it kept
+        fit.send_signal(signal.SIGINT)
+        _, stderr = fit.communicate()
+        stopped = True
     wall = time.perf_counter() - t0
     record = {"command": f"shspec fit --target spectrum:FILE --lmax-factor {la} --truth FILE --out DIR --quiet "
                          + " ".join(flags),
-              "spectrum": f"shspec forward on Lb = {lb}, {k} eigenvalues", "exit_code": done.returncode,
-              "wall_s": wall, "goal_wall_s": goal, "load_average_before_after": [load, load_average()]}
-    if done.returncode != 0:
-        return {**record, "stderr": done.stderr[-2000:]}
+              "spectrum": f"shspec forward on Lb = {lb}, {k} eigenvalues", "exit_code": fit.returncode,
+              "stopped_at_goal": stopped, "wall_s": wall, "goal_wall_s": goal,
+              "load_average_before_after": [load, load_average()]}
+    if not (out / "summary.json").exists():
+        return {**record, "stderr": stderr[-2000:]}
     summary = json.loads((out / "summary.json").read_text())
     alignment = summary.get("alignment") or {}
     record.update(success=summary["successes"] > 0, starts_run=len(summary["starts"]),
