@@ -6,9 +6,9 @@ and the starts of ``shspec fit``), so that a caller writes the loop once against
 
 * neither ``workers`` nor ``scheduler``: :class:`SerialExecutor`, every job run at ``submit`` in this process
   (debuggers and profilers see everything; exceptions surface from ``Future.result()`` as usual);
-* ``workers=N``: a :class:`~concurrent.futures.ProcessPoolExecutor` of N processes, started with ``spawn`` (no
-  fork of a process that already runs threads) and with one BLAS/OpenMP/numba thread each, so that N workers use
-  N cores rather than N × cores threads fighting over them;
+* ``workers=N``: a :class:`WorkerPool` (a :class:`~concurrent.futures.ProcessPoolExecutor`) of N processes,
+  started with ``spawn`` (no fork of a process that already runs threads) and with one BLAS/OpenMP/numba thread
+  each, so that N workers use N cores rather than N × cores threads fighting over them;
 * ``scheduler=ADDRESS``: the executor of a Dask distributed cluster (``distributed.Client(ADDRESS).get_executor()``;
   ADDRESS like ``tcp://host:8786``, or a ``LocalCluster``'s ``scheduler_address``).  The workers' thread counts are
   the cluster's business (``dask worker --nthreads 1`` and OMP_NUM_THREADS=1 in their environment); shutting the
@@ -18,20 +18,28 @@ and the starts of ``shspec fit``), so that a caller writes the loop once against
 Jobs must be picklable: module-level functions with picklable arguments and results.  :func:`stop_executor` shuts an
 executor down without waiting for the jobs still running (a fit that stopped at its first success no longer needs
 them); :func:`usable_cores` is the default size of a local pool.
+
+Interrupts: Ctrl-C reaches every process of the terminal's group, so the workers of a :class:`WorkerPool` ignore it
+and leave the decision to the pool's owner, which may end the running jobs with :meth:`WorkerPool.interrupt_workers`
+(SIGTERM to each worker).  A job that runs inside :func:`interruptible` then gets a ``KeyboardInterrupt`` and may
+return what it has (a fit's start returns its best state), once per job; an idle worker ignores the signal, so that
+its death cannot break the pool under the jobs still returning.  :func:`stop_executor` kills the workers.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
+import signal
 import socket
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 
 from .checks import check_int
 from .errors import InvalidArgumentError, SchedulerError
 
-__all__ = ["SerialExecutor", "DaskExecutor", "make_executor", "stop_executor", "usable_cores", "THREAD_VARIABLES",
-           "CONNECT_TIMEOUT"]
+__all__ = ["SerialExecutor", "DaskExecutor", "WorkerPool", "make_executor", "stop_executor", "interruptible",
+           "usable_cores", "THREAD_VARIABLES", "CONNECT_TIMEOUT"]
 
 #: Environment variables that cap the thread pools of BLAS/OpenMP libraries loaded after they are set.
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
@@ -54,6 +62,69 @@ def _one_thread_per_worker() -> None:
 
     _LIMITS.append(threadpool_limits(limits=1))
     numba.set_num_threads(1)
+
+
+#: Whether this worker process runs a job inside :func:`interruptible` (module notes).
+_INTERRUPTIBLE = [False]
+
+
+def _interrupt_job(signum, frame) -> None:
+    """A pool worker's SIGTERM handler: ends an interruptible job by KeyboardInterrupt, once; otherwise nothing."""
+    if _INTERRUPTIBLE[0]:
+        _INTERRUPTIBLE[0] = False  # once per job: a second signal (the group's and the owner's) must not cut its reply
+        raise KeyboardInterrupt
+
+
+def _start_worker() -> None:
+    """Process-pool initializer of :class:`WorkerPool`: one thread per BLAS/numba pool, the interrupts of the
+    module notes."""
+    _one_thread_per_worker()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _interrupt_job)
+
+
+@contextlib.contextmanager
+def interruptible():
+    """Within the block, in a :class:`WorkerPool`'s worker, :meth:`WorkerPool.interrupt_workers` raises
+    ``KeyboardInterrupt`` (module notes); elsewhere it does nothing."""
+    _INTERRUPTIBLE[0] = True
+    try:
+        yield
+    finally:
+        _INTERRUPTIBLE[0] = False
+
+
+def _pool_processes(executor: ProcessPoolExecutor) -> list:
+    """The worker processes of a process pool (private, but stable since Python 3.9)."""
+    return list((getattr(executor, "_processes", None) or {}).values())
+
+
+class WorkerPool(ProcessPoolExecutor):
+    """The local process pool of :func:`make_executor`: ``workers`` processes started with ``spawn``, one thread
+    each, whose running jobs its owner can interrupt (module notes).  Leaving its ``with`` block by an exception
+    (Ctrl-C included) stops it at once (:func:`stop_executor`), without waiting for its jobs."""
+
+    def __init__(self, workers: int):
+        super().__init__(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                         initializer=_start_worker)
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            return super().__exit__(exc_type, exc, tb)
+        # an error or Ctrl-C: the results are no longer wanted, and the workers ignore Ctrl-C, so do not wait
+        stop_executor(self)
+        return False
+
+    def interrupt_workers(self) -> int:
+        """Send SIGTERM to every live worker: a job running inside :func:`interruptible` gets a KeyboardInterrupt.
+        Returns the number of workers signalled."""
+        count = 0
+        for process in _pool_processes(self):
+            if process.is_alive():
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(process.pid, signal.SIGTERM)
+                    count += 1
+        return count
 
 
 class SerialExecutor(Executor):
@@ -180,8 +251,7 @@ def make_executor(workers: int | None = None, scheduler: str | None = None, *,
         return DaskExecutor(scheduler.strip(), timeout=connect_timeout)
     if workers is None or workers == 1:
         return SerialExecutor()
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_one_thread_per_worker)
+    return WorkerPool(workers)
 
 
 def usable_cores() -> int:
@@ -197,24 +267,25 @@ def stop_executor(executor: Executor) -> None:
     """Shut ``executor`` down without waiting for its jobs: the pending ones are cancelled, and the running ones end
     too, their results lost.
 
-    A process pool's workers are terminated (a running job cannot be cancelled otherwise: a plain ``shutdown``
-    waits for it, and so does the interpreter at exit); a Dask executor cancels its futures and closes its
+    A process pool's workers are killed (a running job cannot be cancelled otherwise: a plain ``shutdown``
+    waits for it, and so does the interpreter at exit; SIGTERM would only interrupt a :class:`WorkerPool`'s job,
+    whose worker could then take the next one queued); a Dask executor cancels its futures and closes its
     client (the cluster's workers drop the tasks); a :class:`SerialExecutor` has nothing running.  Use it on an
     executor of your own, once its results are in: on a shared one it ends the other jobs too.
     """
     if isinstance(executor, ProcessPoolExecutor):
-        terminate = getattr(executor, "terminate_workers", None)  # Python >= 3.14
-        if terminate is not None:
-            terminate()
+        kill = getattr(executor, "kill_workers", None)  # Python >= 3.14
+        if kill is not None:
+            kill()
             executor.shutdown(wait=True)
             return
-        # earlier Pythons: the pool's own processes and manager thread (private, but stable since 3.9)
-        processes = list((getattr(executor, "_processes", None) or {}).values())
+        # earlier Pythons: the pool's own processes and manager thread
+        processes = _pool_processes(executor)
         manager = getattr(executor, "_executor_manager_thread", None)
         executor.shutdown(wait=False, cancel_futures=True)
         for process in processes:
             if process.is_alive():
-                process.terminate()
+                process.kill()
         for process in processes:
             process.join()
         if manager is not None:

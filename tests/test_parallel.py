@@ -52,3 +52,17 @@ def test_a_scheduler_without_dask_installed_says_which_extra_to_install(monkeypa
                  "--scheduler", "tcp://127.0.0.1:8786", "--out", str(tmp_path / "fit")]) == 1
     err = capsys.readouterr().err
     assert "shspec[dask]" in err and "Traceback" not in err
+
+
+def test_leaving_a_worker_pool_by_an_exception_does_not_wait_for_its_jobs():
+    # the workers ignore Ctrl-C (their owner decides), so the pool must not wait for a job nobody wants any more
+    start = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        with make_executor(workers=2) as pool:
+            jobs = [pool.submit(time.sleep, 120) for _ in range(3)]
+            while not all(job.running() for job in jobs[:2]):
+                time.sleep(0.1)
+            time.sleep(1.0)
+            raise KeyboardInterrupt
+    assert time.perf_counter() - start < 60
+    assert all(job.done() for job in jobs)  # cancelled, or failed with their workers
