@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import math
+import time
 from concurrent.futures import FIRST_COMPLETED, Executor, wait
 from pathlib import Path
 
@@ -19,7 +20,7 @@ import numpy as np
 
 from ..checks import check_options
 from ..errors import InvalidArgumentError
-from ..parallel import SerialExecutor
+from ..parallel import SerialExecutor, interruptible
 from ..spectral_model import SpectralModel
 from .checkpoint import fingerprint, load_checkpoint, save_checkpoint
 from .driver import run_start
@@ -62,15 +63,28 @@ def _first_success(finished: list) -> float:
     return min((r.index for r in finished if r.success), default=math.inf)
 
 
+#: Seconds an interrupted fit waits for the running starts of its process pool to send back their best states.
+INTERRUPT_GRACE = 30.0
+
+
 def _run_fresh_start(problem: FitProblem, index: int) -> StartResult:
     """One start from scratch (the task sent to an executor's worker): no checkpoints inside it."""
     rng = np.random.default_rng([problem.options.seed, index])
-    return run_start(problem, StartProgress(index, 0, problem.initial(rng, index), None))
+    return _continue_start(problem, StartProgress(index, 0, problem.initial(rng, index), None))
 
 
 def _continue_start(problem: FitProblem, progress: StartProgress) -> StartResult:
-    """A start a checkpoint left running, continued from its state (the task sent to an executor's worker)."""
-    return run_start(problem, progress)
+    """A start a checkpoint left running, continued from its state (the task sent to an executor's worker).  When
+    its pool's owner interrupts it (:meth:`~shspec.parallel.WorkerPool.interrupt_workers`), the start ends at its
+    best state, with status "interrupted"."""
+    t0 = time.perf_counter() - progress.seconds
+    try:
+        with interruptible():
+            return run_start(problem, progress)
+    except KeyboardInterrupt:
+        if progress.params is None:  # interrupted before its first state: nothing to send back
+            raise
+        return progress.result("interrupted", time.perf_counter() - t0, progress.succeeded(problem, final=True))
 
 
 def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finished: list, checkpoint,
@@ -112,12 +126,39 @@ def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finish
     except KeyboardInterrupt:
         for future in futures:
             future.cancel()
+        _collect_interrupted(executor, [f for f in sorted(waiting, key=futures.get) if not f.cancelled()],
+                             finished, display)
         return True
     except BaseException:
         for future in futures:
             future.cancel()
         raise
     return False
+
+
+def _collect_interrupted(executor: Executor, running: list, finished: list, display: FitDisplay) -> None:
+    """After Ctrl-C: interrupt the workers of a :class:`~shspec.parallel.WorkerPool` and append the best states
+    their running starts send back within :data:`INTERRUPT_GRACE` seconds (as many as workers were signalled: a
+    start still queued may have taken a freed worker, and is not waited for)."""
+    interrupt = getattr(executor, "interrupt_workers", None)
+    signalled = interrupt() if running and interrupt is not None else 0
+    if signalled:
+        display.message(f"interrupted: waiting up to {INTERRUPT_GRACE:g} s for the best states of the running "
+                        "starts (Ctrl-C again: do not wait)")
+    deadline = time.monotonic() + INTERRUPT_GRACE
+    try:
+        while running and signalled and time.monotonic() < deadline:
+            ended, rest = wait(running, timeout=deadline - time.monotonic(), return_when=FIRST_COMPLETED)
+            running = [f for f in running if f in rest]
+            for future in ended:
+                signalled -= 1
+                try:
+                    finished.append(future.result())
+                except (KeyboardInterrupt, Exception):  # interrupted before its first state, or its worker died
+                    continue
+                display.start_done(finished[-1])
+    except KeyboardInterrupt:
+        display.message("interrupted again: the states of the starts still running are dropped")
 
 
 def fit(target: Target, model: SpectralModel, options: FitOptions | None = None, *, resume: bool = False,
@@ -145,12 +186,14 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
         the answer); starts after the first success that ended anyway are left out of the result.  A start already
         running in a process pool cannot be cancelled: the fit returns without its result, but it goes on in its
         worker until it ends, and leaving a ``with ProcessPoolExecutor()`` block waits for it;
-        :func:`shspec.parallel.stop_executor` ends it at once (``shspec fit`` does).  Finished starts are
-        checkpointed as they arrive; a start still running when the fit stops is run again from its beginning on
-        resume (or from the state a serial run's checkpoint holds), as the checkpoints are written between starts
-        only.  Run at most one start per process at a time (processes, or Dask workers with one thread each):
-        threads are safe (:mod:`shspec.threads`), but they take turns in pyshtools' grid routines and numba's
-        parallel kernels.
+        :func:`shspec.parallel.stop_executor` ends it at once (``shspec fit`` does).  On Ctrl-C the running starts
+        of a :class:`~shspec.parallel.WorkerPool` (``make_executor(workers=N)``) are interrupted and their best
+        states, status "interrupted", are part of the result (waited for up to :data:`INTERRUPT_GRACE` seconds).
+        Finished starts are checkpointed as they arrive; a start still running when the fit stops is run again
+        from its beginning on resume (or from the state a serial run's checkpoint holds), as the checkpoints are
+        written between starts only.  Run at most one start per process at a time (processes, or Dask workers
+        with one thread each): threads are safe (:mod:`shspec.threads`), but they take turns in pyshtools' grid
+        routines and numba's parallel kernels.
 
     Returns
     -------
@@ -225,7 +268,7 @@ def _run_starts(problem: FitProblem, executor, finished: list, current, done: se
         interrupted = _run_parallel(problem, pending, executor, finished,
                                     checkpoint if options.checkpoint_path else None, display, current)
         if interrupted:
-            display.message("interrupted: the finished starts are kept")
+            display.message("interrupted: the finished starts and the best states of the running ones are kept")
     else:
         for i in range(options.starts):
             if i in done:

@@ -135,7 +135,7 @@ def test_sigterm_to_a_fit_without_checkpoints_writes_the_best_state(tmp_path):
     args = [a for a in TINY if a != "--quiet"]
     args[args.index("--starts") + 1] = "1000"
     args[args.index("--max-iter") + 1] = "1000"
-    # every start (a long fit), one after the other: on a process pool an interrupt keeps the finished starts only
+    # every start (a long fit), one after the other (a process pool: the next test)
     proc = subprocess.Popen([sys.executable, "-m", "shspec", *args, "--all-starts", "--workers", "1", "--out", str(out)],
                             env=env, stderr=subprocess.PIPE, text=True)
     # wait until the fit runs (its first line on stderr), then give it a moment inside the starts
@@ -148,6 +148,32 @@ def test_sigterm_to_a_fit_without_checkpoints_writes_the_best_state(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["interrupted"] is True and summary["starts"]
     assert (out / "result.h5").is_file()
+
+
+def test_sigterm_to_a_fit_on_a_process_pool_keeps_the_best_states_of_its_running_starts(tmp_path):
+    out = tmp_path / "run"
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1]), "OMP_NUM_THREADS": "1",
+           "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
+    args = [a for a in TINY if a != "--quiet"]
+    args[args.index("--starts") + 1] = "1000"
+    args[args.index("--max-iter") + 1] = "1000"
+    # SIGTERM to the fit's own process only, as a batch system sends it (Ctrl-C reaches the workers as well, and
+    # they leave it to the fit): the workers are interrupted by the fit and send their starts' best states back
+    proc = subprocess.Popen([sys.executable, "-m", "shspec", *args, "--all-starts", "--workers", "2", "--out",
+                             str(out)], env=env, stderr=subprocess.PIPE, text=True)
+    first = proc.stderr.readline()
+    assert first.startswith("fitting"), first
+    time.sleep(8.0)  # the workers start (spawn, imports) and run starts
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "waiting up to" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] is True
+    interrupted = [s for s in summary["starts"] if s["status"] == "interrupted"]
+    assert interrupted and all(s["iterations"] >= 0 and np.isfinite(s["energy"]) for s in interrupted)
+    indices = [s["index"] for s in summary["starts"]]
+    assert len(set(indices)) == len(indices)
 
 
 def test_an_interrupt_between_two_starts_keeps_the_finished_ones(monkeypatch):
