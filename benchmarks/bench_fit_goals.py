@@ -6,7 +6,7 @@ then ``shspec fit --target spectrum:FILE --lmax-factor La --truth FILE --out DIR
 default (the flags named per case), in a fresh process on the machine's cores.  Recorded per case: the wall time
 of the fit command, the load average before and after, whether a start succeeded, the starts run, and the error
 of ρ after Möbius and O(3) alignment (relative L2 and per-degree power) from its ``summary.json``.  A fit still
-running at its goal's wall time is stopped there by Ctrl-C (the goal is missed by then) and its kept state recorded.
+running at its goal's wall time is stopped there by SIGTERM (the goal is missed by then) and its kept states recorded.
 
 Cases (``--only TEXT`` runs those whose name contains TEXT; cases not run keep their earlier records):
 
@@ -66,8 +66,9 @@ def run_case(name: str, work: Path) -> dict:
         _, stderr = fit.communicate(timeout=goal)
         stopped = False
     except subprocess.TimeoutExpired:
-        # past the goal the goal is missed anyway: Ctrl-C, as a user would, and record the state it kept
-        fit.send_signal(signal.SIGINT)
+        # past the goal the goal is missed anyway: stop it as a batch system would (shspec fit takes SIGTERM as
+        # Ctrl-C; SIGINT would be ignored in a background job) and record the states it kept
+        fit.send_signal(signal.SIGTERM)
         _, stderr = fit.communicate()
         stopped = True
     wall = time.perf_counter() - t0
