@@ -163,7 +163,11 @@ def test_sigterm_to_a_fit_on_a_process_pool_keeps_the_best_states_of_its_running
                              str(out)], env=env, stderr=subprocess.PIPE, text=True)
     first = proc.stderr.readline()
     assert first.startswith("fitting"), first
-    time.sleep(8.0)  # the workers start (spawn, imports) and run starts
+    # the workers run starts once the first has ended (each takes a second or two; EOF if the fit died)
+    line = first
+    while line and " done: " not in line:
+        line = proc.stderr.readline()
+    time.sleep(1.0)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
