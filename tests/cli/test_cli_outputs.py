@@ -128,20 +128,25 @@ def test_a_read_only_output_folder_is_one_output_error(tmp_path, tiny_result, mo
 
 # item 5 -------------------------------------------------------------------------------------------------------
 
-def test_sigterm_to_a_fit_without_checkpoints_writes_the_best_state(tmp_path):
-    out = tmp_path / "run"
+def _long_fit(out, workers: str) -> subprocess.Popen:
+    """``shspec fit`` running every one of 1000 starts (a long fit) on ``workers``, its stderr a pipe; returned once
+    it has said its first line."""
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1]), "OMP_NUM_THREADS": "1",
            "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
     args = [a for a in TINY if a != "--quiet"]
     args[args.index("--starts") + 1] = "1000"
     args[args.index("--max-iter") + 1] = "1000"
-    # every start (a long fit), one after the other (a process pool: the next test)
-    proc = subprocess.Popen([sys.executable, "-m", "shspec", *args, "--all-starts", "--workers", "1", "--out", str(out)],
-                            env=env, stderr=subprocess.PIPE, text=True)
-    # wait until the fit runs (its first line on stderr), then give it a moment inside the starts
+    proc = subprocess.Popen([sys.executable, "-m", "shspec", *args, "--all-starts", "--workers", workers, "--out",
+                             str(out)], env=env, stderr=subprocess.PIPE, text=True)
     first = proc.stderr.readline()
     assert first.startswith("fitting"), first
-    time.sleep(1.0)
+    return proc
+
+
+def test_sigterm_to_a_fit_without_checkpoints_writes_the_best_state(tmp_path):
+    out = tmp_path / "run"
+    proc = _long_fit(out, "1")  # one start after the other (a process pool: the next test)
+    time.sleep(1.0)  # a moment inside the starts
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
@@ -152,19 +157,11 @@ def test_sigterm_to_a_fit_without_checkpoints_writes_the_best_state(tmp_path):
 
 def test_sigterm_to_a_fit_on_a_process_pool_keeps_the_best_states_of_its_running_starts(tmp_path):
     out = tmp_path / "run"
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1]), "OMP_NUM_THREADS": "1",
-           "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
-    args = [a for a in TINY if a != "--quiet"]
-    args[args.index("--starts") + 1] = "1000"
-    args[args.index("--max-iter") + 1] = "1000"
     # SIGTERM to the fit's own process only, as a batch system sends it (Ctrl-C reaches the workers as well, and
     # they leave it to the fit): the workers are interrupted by the fit and send their starts' best states back
-    proc = subprocess.Popen([sys.executable, "-m", "shspec", *args, "--all-starts", "--workers", "2", "--out",
-                             str(out)], env=env, stderr=subprocess.PIPE, text=True)
-    first = proc.stderr.readline()
-    assert first.startswith("fitting"), first
+    proc = _long_fit(out, "2")
     # the workers run starts once the first has ended (each takes a second or two; EOF if the fit died)
-    line = first
+    line = "fitting"
     while line and " done: " not in line:
         line = proc.stderr.readline()
     time.sleep(1.0)
