@@ -411,9 +411,10 @@ def load_table(lmax: int, lmax_factor: int, directory: str | os.PathLike | None 
     if path.exists():
         return _read(path, lmax, lmax_factor)
     missing = str(path.resolve())
-    if missing in _COVERED:
+    source = _COVERED.get(missing)  # one lookup: another thread may forget the entry between two
+    if source is not None:
         try:
-            return _read(_COVERED[missing]).restrict(lmax, lmax_factor)
+            return _read(source).restrict(lmax, lmax_factor)
         except (OSError, CorruptTableError, TableMismatchError):
             _COVERED.pop(missing, None)  # removed or changed since: the scan below finds what covers it now
     for info in list_tables(directory):
