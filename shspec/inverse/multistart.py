@@ -126,8 +126,7 @@ def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finish
     except KeyboardInterrupt:
         for future in futures:
             future.cancel()
-        _collect_interrupted(executor, [f for f in sorted(waiting, key=futures.get) if not f.cancelled()],
-                             finished, display)
+        _collect_interrupted(executor, {f for f in waiting if not f.cancelled()}, finished, display)
         return True
     except BaseException:
         for future in futures:
@@ -136,7 +135,7 @@ def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finish
     return False
 
 
-def _collect_interrupted(executor: Executor, running: list, finished: list, display: FitDisplay) -> None:
+def _collect_interrupted(executor: Executor, running: set, finished: list, display: FitDisplay) -> None:
     """After Ctrl-C: interrupt the workers of a :class:`~shspec.parallel.WorkerPool` and append the best states
     their running starts send back within :data:`INTERRUPT_GRACE` seconds (as many as workers were signalled: a
     start still queued may have taken a freed worker, and is not waited for)."""
@@ -148,8 +147,7 @@ def _collect_interrupted(executor: Executor, running: list, finished: list, disp
     deadline = time.monotonic() + INTERRUPT_GRACE
     try:
         while running and signalled and time.monotonic() < deadline:
-            ended, rest = wait(running, timeout=deadline - time.monotonic(), return_when=FIRST_COMPLETED)
-            running = [f for f in running if f in rest]
+            ended, running = wait(running, timeout=deadline - time.monotonic(), return_when=FIRST_COMPLETED)
             for future in ended:
                 signalled -= 1
                 try:
