@@ -32,8 +32,17 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
     -------
     StartResult
     """
-    opt = problem.options
     t0 = time.perf_counter() - progress.seconds
+    try:
+        return _run(problem, progress, checkpoint, t0)
+    finally:
+        # one clock per start: an interrupt anywhere, in the hops too, leaves its time up to date for the result
+        progress.seconds = time.perf_counter() - t0
+
+
+def _run(problem: FitProblem, progress: StartProgress, checkpoint, t0: float) -> StartResult:
+    """The body of :func:`run_start`, its clock started at ``t0`` (:func:`time.perf_counter`)."""
+    opt = problem.options
     rng_seed = (opt.seed, progress.index)
     params = progress.base
     last = len(problem.stages) - 1

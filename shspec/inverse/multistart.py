@@ -77,14 +77,13 @@ def _continue_start(problem: FitProblem, progress: StartProgress) -> StartResult
     """A start a checkpoint left running, continued from its state (the task sent to an executor's worker).  When
     its pool's owner interrupts it (:meth:`~shspec.parallel.WorkerPool.interrupt_workers`), the start ends at its
     best state, with status "interrupted"."""
-    t0 = time.perf_counter() - progress.seconds
     try:
         with interruptible():
             return run_start(problem, progress)
     except KeyboardInterrupt:
         if progress.params is None:  # interrupted before its first state: nothing to send back
             raise
-        return progress.result("interrupted", time.perf_counter() - t0, progress.succeeded(problem, final=True))
+        return progress.result("interrupted", progress.seconds, progress.succeeded(problem, final=True))
 
 
 def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finished: list, checkpoint,

@@ -197,7 +197,8 @@ class StartProgress:
         The optimizer's state after its last completed iteration.
     history : list of (stage, energy, relative residual)
     seconds : float
-        Time spent in this start before the current run (resumed starts).
+        Time spent in this start: before the current run (resumed starts) while it runs, up to date after each
+        iteration and whenever :func:`~shspec.inverse.driver.run_start` returns or is interrupted.
     """
 
     index: int

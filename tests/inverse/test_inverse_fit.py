@@ -4,6 +4,7 @@ schedules, the PL path on the study's star surfaces, and the command line."""
 from __future__ import annotations
 
 import json
+import time
 from dataclasses import replace
 
 import matplotlib
@@ -255,6 +256,25 @@ def test_resume_after_ctrl_c_in_the_hops_of_a_stage_equals_uninterrupted_run(sma
     for a, b in zip(reference.starts, resumed.starts):
         np.testing.assert_allclose(b.params, a.params, rtol=1e-12, atol=1e-15)
         np.testing.assert_allclose(b.history, a.history, rtol=1e-10, atol=1e-300)
+
+
+def test_a_start_interrupted_in_its_hops_counts_their_time(small, monkeypatch):
+    """The hops record no iterations; the time of a start stopped inside them still runs to the interrupt."""
+    from shspec.inverse import hops
+
+    target, model = small
+    opts = FitOptions(starts=1, seed=3, max_iter=2, schedule=(Stage(4), Stage(6)), basin_hops=1, hop_iter=2)
+    seen = {}
+
+    def slow_interrupted_hop(problem, progress, s, moves, status):
+        seen["seconds"] = progress.seconds
+        time.sleep(0.3)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(hops, "hop_once", slow_interrupted_hop)
+    result = fit(target, model, opts)
+    assert result.interrupted and result.starts[0].status == "interrupted"
+    assert result.starts[0].seconds >= seen["seconds"] + 0.3
 
 
 def test_positivity_safeguard_never_crashes():
