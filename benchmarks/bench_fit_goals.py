@@ -41,8 +41,8 @@ NAME = "bench_fit_goals.json"
 
 #: name -> (degree, truth seed, spectrum basis Lb and K, extra fit flags, goal wall time in s)
 CASES = {
-    "degree8-201": (8, 201, (36, 200), [], 180),
-    "degree8-202": (8, 202, (36, 200), [], 180),
+    "degree8-201": (8, 201, (40, 300), [], 180),
+    "degree8-202": (8, 202, (40, 300), [], 180),
     "degree10-203": (10, 203, (24, 300), ["--numeig", "300", "--lmax", "24"], 480),
     "degree12-204": (12, 204, (48, 300), [], 900),
     "degree15-205": (15, 205, (54, 400), [], 1800),

@@ -548,8 +548,9 @@ def test_geodesic_acceleration_shortens_the_crawl_of_lm():
 
 
 def test_cli_fit_without_numeig_plans_k_and_lmax(tmp_path, capsys):
-    """No --numeig: the fit takes the planned K and Lb, says so and writes the plan to summary.json."""
-    from shspec.inverse.planning import plan_numeig
+    """No --numeig: the fit takes the planned K and Lb, says so and writes the plan to summary.json.  The plan
+    takes 2.5 eigenvalues per coefficient where identifiability would take fewer."""
+    from shspec.inverse.planning import SEARCH_NUMEIG_FACTOR, plan_fit, plan_numeig
 
     truth = random_centred_coefficients(4, 3, 0.2)
     spectrum_file = tmp_path / "spectrum.txt"
@@ -559,8 +560,12 @@ def test_cli_fit_without_numeig_plans_k_and_lmax(tmp_path, capsys):
                  "--max-iter", "3", "--basin-hops", "0", "--schedule", "none", "--out", str(out)]) == 0
     assert "--numeig not given: K = " in capsys.readouterr().err
     summary = json.loads((out / "summary.json").read_text())
-    plan = plan_numeig(3, random_centred_coefficients(0, 3, 0.2), noise=1e-13, accuracy=1e-8, basis_tol=1e-10)
+    identified = plan_numeig(3, random_centred_coefficients(0, 3, 0.2), noise=1e-13, accuracy=1e-8,
+                             basis_tol=1e-10).numeig
+    plan = plan_fit(3, random_centred_coefficients(0, 3, 0.2))
+    assert identified < plan.numeig == round(SEARCH_NUMEIG_FACTOR * 16) == 40
     assert summary["numeig_plan"]["numeig"] == plan.numeig == summary["numeig"]
+    assert summary["numeig_plan"]["identified"] == plan.identified == identified
     assert summary["numeig_plan"]["lmax"] == plan.lmax
     # the basis is planned for the success tolerance: the truth itself meets it there, the accurate spectrum taken
     # 8 degrees higher (on a basis converged to 1e-6 only, it would not)
