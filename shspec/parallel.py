@@ -54,7 +54,11 @@ _LIMITS = []
 def _one_thread_per_worker() -> None:
     """Process-pool initializer: one thread for every BLAS/OpenMP pool, numba included."""
     for name in THREAD_VARIABLES:
-        os.environ[name] = "1"
+        # not numba's: it has run already (unpickling this initializer imports shspec), and once its threads are up
+        # every compilation re-reads the environment and raises if NUMBA_NUM_THREADS changed, so a worker with a
+        # cold numba cache failed at its first kernel; set_num_threads below is what numba takes at run time
+        if name != "NUMBA_NUM_THREADS":
+            os.environ[name] = "1"
     import numba
     import numpy  # noqa: F401  (load the BLAS that threadpoolctl then limits)
     import scipy.linalg  # noqa: F401  (SciPy ships its own OpenBLAS)

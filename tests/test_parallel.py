@@ -66,3 +66,16 @@ def test_leaving_a_worker_pool_by_an_exception_does_not_wait_for_its_jobs():
             raise KeyboardInterrupt
     assert time.perf_counter() - start < 60
     assert all(job.done() for job in jobs)  # cancelled, or failed with their workers
+
+
+def _compile_here() -> int:
+    import numba
+
+    return numba.njit(lambda x: x + 1)(1)  # compiling re-reads numba's configuration from the environment
+
+
+def test_a_worker_compiles_numba_code():
+    # with a cold numba cache a pool's worker compiles shspec's kernels at their first call; the worker's one-thread
+    # setup once changed NUMBA_NUM_THREADS under numba's running threads, and every compilation raised
+    with make_executor(workers=2) as pool:  # workers=1 runs here
+        assert pool.submit(_compile_here).result(timeout=120) == 2
