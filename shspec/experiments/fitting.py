@@ -2,8 +2,8 @@
 
 Threads.  On a shared machine OpenBLAS's worker threads spin against other processes: a dense 162 × 162
 generalized eigenproblem measured 0.64 s with the default threads and 5 ms with one thread (load average 10 on 2
-cores).  The fits call thousands of small dense kernels, so :func:`single_threaded` limits BLAS to one thread
-(through ``threadpoolctl`` when it is installed; otherwise it does nothing).
+cores).  The fits call thousands of small dense kernels, so :func:`single_threaded` keeps BLAS on one thread
+(:func:`shspec.threads.reproducible`, which also makes the results independent of the thread count).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from tqdm import tqdm
 from ..inverse import align
 from ..mesh.bridge import fit_harmonic, mesh_band_limit
 from ..sphere.rotate import power_spectrum
+from ..threads import reproducible
 
 __all__ = ["single_threaded", "Progress", "vertex_factor_errors", "spectral_residuals", "harmonic_errors",
            "write_h5", "spearman"]
@@ -33,15 +34,9 @@ def single_threaded():
     pairs); the fit only uses the eigenvalues, so the warning about arbitrary eigenvectors inside the cut group is
     noise here.
     """
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), reproducible():
         warnings.filterwarnings("ignore", message=".*form one degenerate group.*")
-        try:
-            from threadpoolctl import threadpool_limits
-        except ImportError:  # pragma: no cover - threadpoolctl is optional
-            yield
-            return
-        with threadpool_limits(limits=1):
-            yield
+        yield
 
 
 class Progress:

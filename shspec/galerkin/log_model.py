@@ -40,6 +40,7 @@ from ..sphere.grid import GLQGrid, evaluate_on_grid, expand_grid, glq_grid
 from ..sphere.harmonics import check_degree, degrees, ncoeffs
 from ..sphere.random import random_coefficients
 from ..sphere.rotate import power_spectrum
+from ..threads import reproducible_call
 from .gridforms import GridQuadraticForms
 from .model import (HarmonicModel, SpectrumResult, block_moves, laplacian_regularizer, rotation_generators,
                     smallest_agreeing_basis)
@@ -140,6 +141,7 @@ class LogHarmonicModel(SpectralModel):
         """The full symmetric mass matrix M(u), (N, N)."""
         return self.mass.mass_matrix(self.mass_coefficients(params))
 
+    @reproducible_call
     def spectrum(self, params, k: int, *, start: Spectrum | None = None) -> LogSpectrumResult:
         """First k eigenpairs (λ₀ = 0 included) for the coefficients u of log ρ; ``start`` as for
         :meth:`HarmonicModel.spectrum <shspec.galerkin.model.HarmonicModel.spectrum>`."""
@@ -148,6 +150,7 @@ class LogHarmonicModel(SpectralModel):
         spec = self.mass.spectrum(a, k, start=start)
         return LogSpectrumResult(**{f: getattr(spec, f) for f in spec.__dataclass_fields__}, rho_grid=rho)
 
+    @reproducible_call
     def eigenvalues(self, params, k: int) -> np.ndarray:
         return self.mass.eigenvalues(self.mass_coefficients(params), k)
 
@@ -165,12 +168,14 @@ class LogHarmonicModel(SpectralModel):
                                        f"{type(spec).__name__}")
         return spec
 
+    @reproducible_call
     def jacobian(self, spec: Spectrum) -> np.ndarray:
         """∂λ_i/∂u_k = −λ_i Σ_g w_g ρ_g Y_k f_i² (module notes), as a (k, nparams) array."""
         spec = self._spectrum_of_mine(spec)
         q = self.forms(spec.eigenvectors, spec.rho_grid)
         return -(q * spec.eigenvalues[None, :]).T
 
+    @reproducible_call
     def contract(self, spec: Spectrum, coef: np.ndarray) -> np.ndarray:
         """Σ_i c_i ∂λ_i/∂u, (nparams,), in one weighted quadrature."""
         spec = self._spectrum_of_mine(spec)

@@ -27,7 +27,7 @@ from ..sphere.factor import ConformalFactor
 from ..sphere.harmonics import check_degree, degree_order, degrees, lmax_of_size, ncoeffs
 from ..sphere.random import random_centred_coefficients, random_coefficients
 from ..sphere.rotate import power_spectrum, rotate_coefficients
-from ..threads import serialized
+from ..threads import reproducible_call, serialized
 from .eigen import cold_eigh, guard_count, warm_eigh
 from .gridforms import GridQuadraticForms
 from .truncation import TruncationEstimate, basis_degree_for
@@ -156,6 +156,7 @@ class HarmonicModel(SpectralModel):
         """The full symmetric mass matrix M(a), (N, N)."""
         return self.table.mass_matrix(self._params(params))
 
+    @reproducible_call
     def spectrum(self, params, k: int, *, start: Spectrum | None = None, guards: bool = True) -> SpectrumResult:
         """First k eigenpairs (λ₀ = 0 included) for the factor coefficients ``params`` or a ConformalFactor.
 
@@ -194,6 +195,7 @@ class HarmonicModel(SpectralModel):
         return SpectrumResult(vals, vecs, lmax=self.lmax, lmax_factor=self.lmax_factor, coefficients=a.copy(),
                               reduced_vectors=np.ascontiguousarray(u), solver=solver)
 
+    @reproducible_call
     def eigenvalues(self, params, k: int) -> np.ndarray:
         """The first k eigenvalues (k,) alone, as :meth:`spectrum` gives them cold; about half its time without the
         eigenvectors (what the truncation estimate of :func:`spectrum`, the probe of LM's geodesic acceleration and
@@ -244,6 +246,7 @@ class HarmonicModel(SpectralModel):
             self._grid_forms = GridQuadraticForms(self.lmax, self.lmax_factor)
         return self._grid_forms
 
+    @reproducible_call
     def jacobian(self, spec: Spectrum) -> np.ndarray:
         """∂λ_i/∂a_k = −λ_i v_iᵀ G_k v_i, as a (k, nparams) array.
 
@@ -255,6 +258,7 @@ class HarmonicModel(SpectralModel):
         q = self.grid_forms(spec.eigenvectors)
         return -(q * spec.eigenvalues[None, :]).T
 
+    @reproducible_call
     def contract(self, spec: Spectrum, coef: np.ndarray) -> np.ndarray:
         """Σ_i c_i ∂λ_i/∂a = −∫ Y_k Σ_i c_i λ_i f_i² dΩ (f_i the eigenfunctions), by the same quadrature as
         :meth:`jacobian`, (nparams,)."""

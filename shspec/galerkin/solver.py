@@ -30,11 +30,13 @@ from ..errors import InvalidArgumentError, NotPositiveError, ShspecError, Trunca
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
 from ..sphere.factor import ConformalFactor, as_factor
 from ..sphere.harmonics import check_degree
+from ..threads import reproducible_call
 from .model import HarmonicModel, SpectrumResult
 from .truncation import DEFAULT_TRUNCATION_TOL, TruncationEstimate, basis_truncation, factor_truncation, tail_bound
 
 __all__ = ["spectrum", "MAX_BASIS_DEGREE"]
 
+@reproducible_call
 def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: GauntTable | None = None,
              cache_dir=None, build: bool = True, truncation_tol: float | None = DEFAULT_TRUNCATION_TOL,
              ) -> SpectrumResult:

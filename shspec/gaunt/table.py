@@ -23,7 +23,7 @@ import numpy as np
 from ..checks import real_array
 from ..errors import BandLimitError, InvalidArgumentError
 from ..resources import Need
-from ..threads import serialized
+from ..threads import REDUCTION_CHUNKS, serialized
 from ..sphere.harmonics import check_degree, ncoeffs
 from .real_gaunt import order_factor
 
@@ -412,7 +412,7 @@ class GauntTable:
         bmat = np.asarray(bmat, dtype=float)
         if bmat.shape != (self.nbasis, self.nbasis):
             raise InvalidArgumentError(f"B must have shape {(self.nbasis, self.nbasis)}, got {bmat.shape}")
-        return _contract(self._rows, *self.plan.arrays, self.values, bmat, self.nfactor, nb.get_num_threads())
+        return _contract(self._rows, *self.plan.arrays, self.values, bmat, self.nfactor, REDUCTION_CHUNKS)
 
     def quadratic_forms(self, vecs: np.ndarray) -> np.ndarray:
         """Q[k, q] = v_qᵀ G_k v_q for the columns v_q of ``vecs`` (nbasis, nq); returns (nfactor, nq)."""
@@ -420,7 +420,7 @@ class GauntTable:
         if vecs.ndim != 2 or vecs.shape[0] != self.nbasis:
             raise InvalidArgumentError(f"vectors must have shape ({self.nbasis}, q), got {vecs.shape}")
         return _quad_forms(self._rows, *self.plan.arrays, self.values, np.ascontiguousarray(vecs), self.nfactor,
-                           nb.get_num_threads())
+                           REDUCTION_CHUNKS)
 
     def _check_coef(self, coef) -> np.ndarray:
         coef = np.asarray(coef, dtype=float)

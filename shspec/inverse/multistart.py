@@ -1,9 +1,9 @@
 """The inverse solver's entry point: several symmetry-broken starts through a schedule, every local solution kept.
 
 A round start never leaves the even subspace (at an even ρ the gradient along odd degrees is exactly 0,
-:doc:`/theory`), so every start is random, with odd degrees.  Starts run one after the other (each already uses the machine's
-BLAS threads), or on an executor; each writes checkpoints if asked, and Ctrl-C ends the fit cleanly with the best state
-so far.  By default the fit stops at its first successful start (:attr:`FitOptions.stop_at_success`): it keeps
+:doc:`/theory`), so every start is random, with odd degrees.  Starts run one after the other, or on an executor,
+with the same bits either way (:func:`shspec.threads.reproducible`); each writes checkpoints if asked, and Ctrl-C
+ends the fit cleanly with the best state so far.  By default the fit stops at its first successful start (:attr:`FitOptions.stop_at_success`): it keeps
 starts 0, ..., i for the lowest successful index i, whatever order the starts ended in.
 """
 
@@ -29,6 +29,7 @@ from .problem import FitProblem, StartProgress
 from .progress import FitDisplay
 from .results import FitResult, StartResult
 from ..targets import Target
+from ..threads import reproducible_call
 
 __all__ = ["fit", "distinct_solutions"]
 
@@ -73,6 +74,7 @@ def _run_fresh_start(problem: FitProblem, index: int) -> StartResult:
     return _continue_start(problem, StartProgress(index, 0, problem.initial(rng, index), None))
 
 
+@reproducible_call
 def _continue_start(problem: FitProblem, progress: StartProgress) -> StartResult:
     """A start a checkpoint left running, continued from its state (the task sent to an executor's worker).  When
     its pool's owner interrupts it (:meth:`~shspec.parallel.WorkerPool.interrupt_workers`), the start ends at its
@@ -158,6 +160,7 @@ def _collect_interrupted(executor: Executor, running: set, finished: list, displ
         display.message("interrupted again: the states of the starts still running are dropped")
 
 
+@reproducible_call
 def fit(target: Target, model: SpectralModel, options: FitOptions | None = None, *, resume: bool = False,
         init=None, executor: Executor | None = None) -> FitResult:
     """Fit the parameters of ``model`` to the spectrum of ``target`` from several random starts.

@@ -41,6 +41,7 @@ from ..galerkin.model import HarmonicModel
 from ..galerkin.truncation import DEFAULT_TRUNCATION_TOL, basis_degree_for
 from ..sphere.factor import ConformalFactor
 from ..sphere.random import random_centred_coefficients
+from ..threads import reproducible_call
 from .identifiability import identifiability_by_numeig
 from .options import FitOptions
 
@@ -243,6 +244,7 @@ PLANNED_ACCURACY = 1e-8
 SEARCH_NUMEIG_FACTOR = 2.5
 
 
+@reproducible_call
 def plan_fit(lmax_factor: int, reference=None, options: FitOptions | None = None) -> NumeigPlan:
     """The plan of ``shspec fit`` without ``--numeig``: :func:`plan_numeig` for ρ to :data:`PLANNED_ACCURACY` from
     eigenvalues accurate to the fit's ``residual_tol``, on a basis converged to its ``success_tol``, so that the

@@ -45,6 +45,7 @@ from ..checks import check_int, check_options
 from ..errors import ConvergenceError, InvalidArgumentError, MeshError
 from ..spectral_model import Spectrum
 from ..resources import human_bytes
+from ..threads import reproducible_call
 from .cotan import cotan_stiffness, mass_matrix
 from .progress import announce, bar, lanczos_estimate, shown
 from .triangle_mesh import TriangleMesh
@@ -334,6 +335,7 @@ def _orthonormal_block(basis, W, mmul, rng, scale):
     return new, new.T @ mmul(W)
 
 
+@reproducible_call
 def mesh_spectrum(mesh: TriangleMesh, k: int, mass: str = "lumped", *, whole_multiplets: bool = True,
                   options: EigenOptions | None = None) -> Spectrum:
     """First k cotan Laplace–Beltrami eigenpairs of a triangle mesh.

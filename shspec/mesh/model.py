@@ -24,6 +24,7 @@ from ..spectral_model import TRANSFORMS, SpectralModel, Spectrum, regularization
 from ..sphere.evaluate import sample_harmonic
 from ..sphere.factor import ConformalFactor
 from ..sphere.random import random_coefficients
+from ..threads import reproducible_call
 from .bridge import fit_harmonic, mesh_band_limit
 from .cotan import cotan_stiffness, vertex_areas
 from .eigen import EigenOptions, eigenpairs
@@ -156,6 +157,7 @@ class MeshModel(SpectralModel):
         """M(c) = diag(c · vertex_areas), (n, n), length unit squared."""
         return sp.diags(self._factors(c) * self.vertex_areas).tocsr()
 
+    @reproducible_call
     def spectrum(self, params, k: int, *, start: Spectrum | None = None) -> Spectrum:
         """First k eigenpairs of L v = λ M(c) v (exactly k; see :mod:`shspec.mesh.eigen` on cut multiplets).
 
@@ -195,12 +197,14 @@ class MeshModel(SpectralModel):
             raise InvalidArgumentError(f"spectrum eigenvectors must have shape ({self.nparams}, {spec.k}), got "
                                        f"{spec.eigenvectors.shape}")
 
+    @reproducible_call
     def jacobian(self, spec: Spectrum) -> np.ndarray:
         """∂λ_i/∂c_j = −λ_i v_i[j]² m_j as a (k, n) array (1/area, per unit of c)."""
         self._check_spec(spec)
         V = spec.eigenvectors
         return -(spec.eigenvalues[:, None] * (V.T ** 2)) * self.vertex_areas[None, :]
 
+    @reproducible_call
     def contract(self, spec: Spectrum, coef) -> np.ndarray:
         """Σ_i coef_i ∂λ_i/∂c, shape (n,), for coef (k,): the adjoint gradient, O(n k)."""
         self._check_spec(spec)

@@ -439,9 +439,9 @@ def test_starts_on_an_executor_equal_the_serial_run(small):
     for other in (pooled, dasked):
         assert [r.index for r in other.starts] == [0, 1, 2]
         assert other.solutions == serial.solutions
-        for a, b in zip(serial.starts, other.starts):
-            np.testing.assert_allclose(b.params, a.params, rtol=1e-10, atol=1e-14)
-            np.testing.assert_allclose(b.history[:, 1:], a.history[:, 1:], rtol=1e-8, atol=1e-300)
+        for a, b in zip(serial.starts, other.starts):  # bit for bit: every start runs on one BLAS thread
+            np.testing.assert_array_equal(b.params, a.params)
+            np.testing.assert_array_equal(b.history, a.history)
 
 
 def test_cli_mesh_fit_of_a_real_mesh_writes_its_summary(shared_meshes, tmp_path):
@@ -464,7 +464,7 @@ def test_cli_fit_on_workers_equals_the_serial_fit(tmp_path):
     assert main([*args, "--workers", "2", "--out", str(tmp_path / "pool")]) == 0
     a = json.loads((tmp_path / "serial" / "summary.json").read_text())
     b = json.loads((tmp_path / "pool" / "summary.json").read_text())
-    assert [s["energy"] for s in b["starts"]] == pytest.approx([s["energy"] for s in a["starts"]], rel=1e-9)
+    assert [s["energy"] for s in b["starts"]] == [s["energy"] for s in a["starts"]]
     assert main([*args, "--workers", "2", "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "x")]) == 1
 
 
