@@ -120,6 +120,14 @@ def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finish
                         # a process pool may already run a start it queued: its result is dropped, not awaited
                         display.message(f"start {first} succeeded: the {len(skipped)} start(s) after it are not "
                                         "waited for and their results are dropped (stop_at_success)")
+                    before = sorted(futures[f] for f in waiting if futures[f] < first)
+                    if before:
+                        # the wait can be long (a failing start's last round of hops ran 186 s at degree 8), and
+                        # the console is silent meanwhile: say why, and how to take the success now
+                        display.message(f"start {first} succeeded; waiting for start(s) {', '.join(map(str, before))} "
+                                        "before it, as the result is the lowest successful start, the same as a "
+                                        f"serial run's. Ctrl-C takes start {first}'s result now (an interrupted "
+                                        "fit keeps its finished starts)")
             if stop and first < math.inf:
                 for future in [f for f in waiting if futures[f] > first]:
                     future.cancel()  # a running start of a process pool goes on there, unwaited for

@@ -79,6 +79,15 @@ def test_starts_ending_in_reverse_order_give_the_serial_result(case):
     assert sorted(everything.ran) == [0, 1, 2, 3]
 
 
+def test_a_success_that_waits_for_an_earlier_start_says_so(case, capsys):
+    target, model, opts, serial, _ = case
+    # start 1 succeeds while start 0 has not run: the fit waits for 0, and says why and how to stop waiting
+    _same(fit(target, model, replace(opts, progress=True), executor=OrderedExecutor(4)), serial)
+    err = capsys.readouterr().err
+    assert "start 1 succeeded; waiting for start(s) 0 before it" in err
+    assert "Ctrl-C takes start 1's result now" in err
+
+
 def test_the_pending_starts_after_a_success_are_cancelled(case):
     target, model, opts, serial, _ = case
     forwards = OrderedExecutor(4, order=iter)
