@@ -18,7 +18,7 @@
   differently on one thread and on several (measured: eigenvalues at (Lb, La, K) = (30, 15, 256) differ by 5e-12,
   and a fit of degree 10 took another path through its search, 745 against 809 iterations, from a target written
   on one thread instead of two), and so do numba's reductions split by thread.  So shspec's computations run
-  :func:`reproducible`: inside it every BLAS/OpenMP pool of the process has one thread, and the reductions are cut
+  :func:`reproducible`: inside it every BLAS pool of the process has one thread, and the reductions are cut
   into a fixed number of chunks (:data:`REDUCTION_CHUNKS`) whatever numba's thread count.  Processes are the way
   to use more cores (``shspec fit`` runs its starts in a pool).  :func:`set_reproducible` (False) lets BLAS use its
   threads again, for the speed of one large solve on many cores (1.4x at Lb = 49 on two cores), at the price of
@@ -36,7 +36,8 @@ import numba
 
 from .errors import InvalidArgumentError, UnsafeForkError
 
-__all__ = ["PYSHTOOLS_LOCK", "NUMBA_LOCK", "serialized", "reproducible", "reproducible_call", "set_reproducible", "REDUCTION_CHUNKS"]
+__all__ = ["PYSHTOOLS_LOCK", "NUMBA_LOCK", "serialized", "reproducible", "reproducible_call", "set_reproducible",
+           "REDUCTION_CHUNKS"]
 
 #: Held around every call into pyshtools' compiled routines.
 PYSHTOOLS_LOCK = threading.RLock()
@@ -109,7 +110,8 @@ def serialized(kernel):
 
 @contextlib.contextmanager
 def reproducible():
-    """Run the block with one thread in every BLAS/OpenMP pool of the process (module notes).
+    """Run the block with one thread in every BLAS pool of the process (module notes).  OpenMP pools keep theirs:
+    numba's kernels add their partial sums in a fixed order on any number of threads.
 
     Process-wide and counted: the pools get their threads back when the last of the threads inside it leaves, so
     that threads sharing a model all stay on one BLAS thread.  Nested use costs nothing.  Does nothing after
@@ -126,7 +128,7 @@ def reproducible():
                 import scipy.linalg  # noqa: F401  (SciPy ships its own OpenBLAS: load it before the scan)
 
                 _BLAS["controller"] = ThreadpoolController()
-            _BLAS["limiter"] = _BLAS["controller"].limit(limits=1)
+            _BLAS["limiter"] = _BLAS["controller"].limit(limits=1, user_api="blas")
         _BLAS["depth"] += 1
     try:
         yield

@@ -3,8 +3,9 @@
 A round start never leaves the even subspace (at an even ρ the gradient along odd degrees is exactly 0,
 :doc:`/theory`), so every start is random, with odd degrees.  Starts run one after the other, or on an executor,
 with the same bits either way (:func:`shspec.threads.reproducible`); each writes checkpoints if asked, and Ctrl-C
-ends the fit cleanly with the best state so far.  By default the fit stops at its first successful start (:attr:`FitOptions.stop_at_success`): it keeps
-starts 0, ..., i for the lowest successful index i, whatever order the starts ended in.
+ends the fit cleanly with the best state so far.  By default the fit stops at its first successful start
+(:attr:`FitOptions.stop_at_success`): it keeps starts 0, ..., i for the lowest successful index i, whatever order
+the starts ended in.
 """
 
 from __future__ import annotations
