@@ -80,6 +80,7 @@ from ..checks import check_options
 from ..errors import InvalidArgumentError
 from ..mesh.cotan import vertex_areas
 from ..mesh.triangle_mesh import TriangleMesh
+from ..threads import reproducible_call
 from .inputs import vertex_factors
 from .lengths import check_sphere, smooth_factors, target_edge_lengths
 from .options import EmbedOptions, EmbedResult
@@ -90,6 +91,7 @@ from .system import EmbedSystem
 __all__ = ["EmbedOptions", "EmbedResult", "embed"]
 
 
+@reproducible_call
 def embed(sphere: TriangleMesh, factors, options: EmbedOptions | None = None) -> EmbedResult:
     """Embed the metric c·g₀ of a unit-sphere mesh in R³.
 

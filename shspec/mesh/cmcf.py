@@ -25,6 +25,7 @@ from scipy.sparse.linalg import splu
 
 from ..checks import check_float, check_int, check_options
 from ..errors import InvalidArgumentError, MeshError
+from ..threads import reproducible_call
 from .cotan import cotan_stiffness, vertex_areas
 from .mobius import center_mesh
 from .progress import announce, bar, shown
@@ -199,6 +200,7 @@ def _pcg(A, B, X0, precond, tol, maxiter):
     return X, maxiter + 1
 
 
+@reproducible_call
 def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
     """Map a genus-0 mesh conformally onto the unit sphere by conformalized mean-curvature flow.
 
