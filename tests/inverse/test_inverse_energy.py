@@ -301,6 +301,22 @@ def test_plan_numeig_recommends_the_smallest_k_within_the_accuracy():
         plan_numeig(4, noise=0.0)
 
 
+def test_plan_numeig_with_a_floor_on_k_converges_the_basis_for_that_k():
+    from shspec.inverse.planning import converged_basis_degree, plan_numeig
+
+    plain = plan_numeig(4, noise=1e-8, accuracy=1e-6)
+    raised = plan_numeig(4, noise=1e-8, accuracy=1e-6, min_numeig=plain.numeig + 30)
+    assert (raised.numeig, raised.identified) == (plain.numeig + 30, plain.numeig)
+    reference = random_centred_coefficients(0, 4, 0.2)
+    assert (raised.lmax, raised.basis_change) == converged_basis_degree(reference, plain.numeig + 30)
+    assert raised.lmax > plain.lmax and [r.to_dict() for r in raised.rows] == [r.to_dict() for r in plain.rows]
+    # a floor below the identified K changes nothing; one no candidate reaches is not invented either
+    assert plan_numeig(4, noise=1e-8, accuracy=1e-6, min_numeig=10).to_dict() == plain.to_dict()
+    assert plan_numeig(4, noise=1e-2, accuracy=1e-9, candidates=[30, 40], min_numeig=60).numeig is None
+    with pytest.raises(InvalidArgumentError, match="min_numeig"):
+        plan_numeig(4, noise=1e-8, accuracy=1e-6, min_numeig=1.5)
+
+
 def test_converged_basis_degree_against_a_much_larger_basis():
     """The recommended basis really resolves the K eigenvalues (checked at Lb + 6, which the scan never saw), is the
     smallest that does by its own measure, and is far above the (Lb + 1)^2 >= 1.5 K floor for a rough rho: there the
