@@ -227,7 +227,9 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     >>> result = fit(target, HarmonicModel(12, 6), FitOptions(starts=1))  # doctest: +SKIP
     """
     options = check_options(options, FitOptions)
-    problem = FitProblem(model, target, options, init=init)
+    if isinstance(executor, SerialExecutor):
+        executor = None  # the same starts, with the checkpoints inside them that only a run here writes
+    problem = FitProblem(model, target, options, init=init, executor=executor)
     fp = fingerprint(options, target.eigenvalues, model.describe()
                      + ("" if init is None else " init " + hashlib.sha256(problem.init.tobytes()).hexdigest()))
     finished: list[StartResult] = []
@@ -236,11 +238,9 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
         finished, current, stored = load_checkpoint(options.checkpoint_path, fp, target.eigenvalues)
         if not np.array_equal(stored, target.eigenvalues):  # round-off apart: go on with the checkpoint's own
             target = dataclasses.replace(target, eigenvalues=stored)  # target, as the uninterrupted fit did
-            problem = FitProblem(model, target, options, init=init)
+            problem = FitProblem(model, target, options, init=init, executor=executor)
     done = {r.index for r in finished}
     display = FitDisplay(options.starts, len(problem.stages), options.progress, done=len(done))
-    if isinstance(executor, SerialExecutor):
-        executor = None  # the same starts, with the checkpoints inside them that only a run here writes
     try:
         interrupted = _run_starts(problem, executor, finished, current, done, fp, display)
     finally:

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..checks import finite_array
 from ..errors import InvalidArgumentError, NotPositiveError
+from ..parallel import usable_cores
 from ..spectral_model import SpectralModel
 from ..targets import Target
 from .energy import Objective, eigenvalue_weights
@@ -61,6 +62,8 @@ class FitProblem:
     init : (nparams,) array, optional
         Starting point of start 0 (the other starts stay random); with ``options.schedule`` None the fit is then one
         stage at full resolution.
+    executor : concurrent.futures.Executor, optional
+        Choose the stages' bases on it (the fit's process pool), split over the usable cores; None: here.
 
     Raises
     ------
@@ -71,7 +74,7 @@ class FitProblem:
         If a stage's degree exceeds the model's.
     """
 
-    def __init__(self, model: SpectralModel, target: Target, options: FitOptions, *, init=None):
+    def __init__(self, model: SpectralModel, target: Target, options: FitOptions, *, init=None, executor=None):
         if not isinstance(model, SpectralModel):
             raise InvalidArgumentError(f"model must be a SpectralModel, got {type(model).__name__}")
         if not isinstance(target, Target):
@@ -101,22 +104,24 @@ class FitProblem:
         self.area = target.area_estimate()
         # chosen here, once, at a reference: a start's path may then not depend on where the fit runs
         tol = options.stage_basis_tol
+        last = self.stages[-1]
         # a stage that hops tests success at success_tol: on a basis only good to 1e-5 the truth itself would fail
         # it (the blob's 6:64 stage on Lb' = 14 ends every start at 1.5e-6, and its hops go on)
-        self.bases = [None if tol is None or s == len(self.stages) - 1
-                      else model.stage_basis(st.lmax_factor, st.numeig or target.numeig,
-                                             min(tol, options.success_tol) if st.hops else tol)
-                      for s, st in enumerate(self.stages)]
+        requests = [None if tol is None or s == len(self.stages) - 1
+                    else (st.lmax_factor, st.numeig or target.numeig,
+                          min(tol, options.success_tol) if st.hops else tol)
+                    for s, st in enumerate(self.stages)]
+        if options.search_basis_tol is not None and not last.hops:
+            requests.append((last.lmax_factor, last.numeig or target.numeig, options.search_basis_tol))
+        bases = _stage_bases(model, requests, executor)
+        self.bases = bases[:len(self.stages)]
         #: index of the search stage (None: none): the last stage of the schedule and its basin hops run on the
         #: coarsest basis good to ``search_basis_tol``, and a copy of it on the model's own basis polishes the result
         self.search = None
-        if options.search_basis_tol is not None and not self.stages[-1].hops:
-            st = self.stages[-1]
-            basis = model.stage_basis(st.lmax_factor, st.numeig or target.numeig, options.search_basis_tol)
-            if basis is not None:
-                self.stages = (*self.stages[:-1], replace(st, hops=True), st)
-                self.bases = [*self.bases[:-1], basis, None]
-                self.search = len(self.stages) - 2
+        if len(bases) > len(self.stages) and bases[-1] is not None:
+            self.stages = (*self.stages[:-1], replace(last, hops=True), last)
+            self.bases = [*self.bases[:-1], bases[-1], None]
+            self.search = len(self.stages) - 2
         if options.progress and any(b is not None for b in self.bases):
             print("stage bases (degree:eigenvalues -> basis degree): " + ", ".join(
                 f"{st.lmax_factor}:{st.numeig or target.numeig} -> {b}" for st, b in zip(self.stages, self.bases)
@@ -181,6 +186,34 @@ class FitProblem:
     def merge(self, s: int, params: np.ndarray, objective: Objective, x) -> np.ndarray:
         """Full parameters after stage s: the stage's parameters written back into ``params``."""
         return self.model.from_level(objective.params(x), params, self.level(s))
+
+
+def _choose_bases(model: SpectralModel, requests: list) -> list:
+    """``model.stage_basis(*r)`` for each request r (a job sent to an executor's worker)."""
+    return [model.stage_basis(*r) for r in requests]
+
+
+def _stage_bases(model: SpectralModel, requests: list, executor) -> list:
+    """The stage bases of ``requests`` ((level, numeig, tol) or None each), here or split over the usable cores on
+    ``executor``: each is independent and deterministic, and threads would not help (two LAPACK solves on two
+    threads of one process took as long as one after the other).  The largest requests are dealt out first."""
+    jobs = sorted((i for i, r in enumerate(requests) if r is not None), key=lambda i: -requests[i][1])
+    out = [None] * len(requests)
+    if executor is None or len(jobs) < 2:
+        for i in jobs:
+            out[i] = model.stage_basis(*requests[i])
+        return out
+    chunks = [jobs[c::min(len(jobs), usable_cores())] for c in range(min(len(jobs), usable_cores()))]
+    futures = [executor.submit(_choose_bases, model, [requests[i] for i in chunk]) for chunk in chunks]
+    try:
+        for chunk, future in zip(chunks, futures):
+            for i, basis in zip(chunk, future.result()):
+                out[i] = basis
+    except BaseException:
+        for future in futures:
+            future.cancel()
+        raise
+    return out
 
 
 @dataclass

@@ -734,6 +734,30 @@ def test_stage_basis_is_the_smallest_that_agrees_at_the_reference():
     assert model.stage_basis(4, 36, 1.0) == 7  # the floor, (Lb' + 1)² ≥ 1.5 K
 
 
+def test_the_stage_bases_chosen_on_an_executor_equal_those_chosen_here(monkeypatch):
+    from concurrent.futures import ThreadPoolExecutor
+
+    from shspec.inverse import problem as problem_module
+    from shspec.inverse.problem import FitProblem
+
+    monkeypatch.setattr(problem_module, "usable_cores", lambda: 2)
+
+    class Counting(ThreadPoolExecutor):
+        jobs = 0
+
+        def submit(self, fn, /, *args, **kwargs):
+            Counting.jobs += 1
+            return super().submit(fn, *args, **kwargs)
+
+    model = HarmonicModel(20, 6)
+    target = harmonic_target(blob_factor(), 20, 120)
+    here = FitProblem(model, target, FitOptions())
+    with Counting(2) as pool:
+        there = FitProblem(model, target, FitOptions(), executor=pool)
+    assert Counting.jobs == 2  # split over the cores
+    assert there.bases == here.bases and there.stages == here.stages and there.search == here.search is not None
+
+
 def test_early_stages_run_on_their_own_basis_and_the_last_on_the_model():
     from shspec.inverse.problem import FitProblem
 
