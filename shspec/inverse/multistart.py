@@ -189,10 +189,10 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     executor : concurrent.futures.Executor, optional
         Run the starts on it, and choose the stages' bases there first (a process pool, or a Dask cluster's
         ``Client.get_executor()``; see :func:`shspec.parallel.make_executor`); None or a
-        :class:`~shspec.parallel.SerialExecutor`: here, one after the other.  Each start is independent and seeded by its index, so the results are those of a serial run,
-        with :attr:`~FitOptions.stop_at_success` too: when start i succeeds, the pending starts after it are
-        cancelled and the fit waits only for the running starts before it (one of them may succeed, and then it is
-        the answer); starts after the first success that ended anyway are left out of the result.  A start already
+        :class:`~shspec.parallel.SerialExecutor`: here, one after the other.  Each start is independent and
+        seeded by its index, so the results are those of a serial run, with :attr:`~FitOptions.stop_at_success`
+        too: when start i succeeds, the pending starts after it are cancelled and the fit waits only for the
+        running starts before it (one of them may succeed, and then it is the answer); starts after the first success that ended anyway are left out of the result.  A start already
         running in a process pool cannot be cancelled: the fit returns without its result, but it goes on in its
         worker until it ends, and leaving a ``with ProcessPoolExecutor()`` block waits for it;
         :func:`shspec.parallel.stop_executor` ends it at once (``shspec fit`` does).  On Ctrl-C the running starts

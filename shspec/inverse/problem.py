@@ -199,11 +199,12 @@ def _stage_bases(model: SpectralModel, requests: list, executor) -> list:
     threads of one process took as long as one after the other).  The largest requests are dealt out first."""
     jobs = sorted((i for i, r in enumerate(requests) if r is not None), key=lambda i: -requests[i][1])
     out = [None] * len(requests)
-    if executor is None or len(jobs) < 2:
-        for i in jobs:
-            out[i] = model.stage_basis(*requests[i])
+    parts = 1 if executor is None else min(len(jobs), usable_cores())
+    if parts < 2:
+        for i, basis in zip(jobs, _choose_bases(model, [requests[i] for i in jobs])):
+            out[i] = basis
         return out
-    chunks = [jobs[c::min(len(jobs), usable_cores())] for c in range(min(len(jobs), usable_cores()))]
+    chunks = [jobs[c::parts] for c in range(parts)]
     futures = [executor.submit(_choose_bases, model, [requests[i] for i in chunk]) for chunk in chunks]
     try:
         for chunk, future in zip(chunks, futures):
