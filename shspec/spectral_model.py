@@ -134,6 +134,12 @@ class SpectralModel(ABC):
         """The square root D of the regularizer, ½‖D u‖² on the variables u, as a sparse (nrows, nparams) matrix, or
         None for ``reg`` = 0."""
 
+    def solve_cost(self, k: int) -> float:
+        """The cost of one spectrum of ``k`` eigenvalues, relative to this model's others: the unit of a fit start's
+        work (:mod:`shspec.inverse.race`), which must grow with its time but not depend on the machine.  Default:
+        ``k``."""
+        return float(k)
+
     def levels(self) -> tuple[int, ...]:
         """Levels, coarse to fine, that a stage may restrict the model to (empty: none)."""
         return ()

@@ -153,7 +153,7 @@ def register(subparsers) -> None:
     runs.add_argument("--scheduler", default=None, metavar="ADDRESS",
                       help="run the starts on a Dask cluster (shspec[dask])")
     runs.add_argument("--all-starts", action="store_true",
-                      help="run every start (default: stop at the first success)")
+                      help="run every start (default: stop at a success)")
     runs.add_argument("--checkpoint-every", type=int, default=d.checkpoint_every, metavar="N",
                       help="write DIR/checkpoint.h5 every N iterations (0: never)")
     runs.add_argument("--resume", action="store_true", help="continue from DIR/checkpoint.h5 (which must exist)")
@@ -472,7 +472,7 @@ def _fit(args) -> int:
         try:
             result = fit(target, model, options, resume=args.resume, init=init, executor=executor)
         finally:
-            stop_executor(executor)  # the starts a first success made unneeded may still run: not waited for
+            stop_executor(executor)  # the starts a success made unneeded may still run: not waited for
     write_result(result, out)
     if extra:
         path = out / "summary.json"
@@ -481,7 +481,7 @@ def _fit(args) -> int:
     print(("warning: " if ident.underdetermined else "") + ident.statement(), file=sys.stderr)
     best = result.best
     stopped = "" if len(result.starts) == options.starts or result.interrupted else (
-        f" (the fit stops at its first success; --all-starts runs all {options.starts})")
+        f" (the fit stops at a success; --all-starts runs all {options.starts})")
     print(f"best start {best.index}: energy {best.energy:.3e}, max relative residual {best.relative_residual:.3e}; "
           f"{result.success_count}/{len(result.starts)} starts succeeded ({success_definition(result)}){stopped}; "
           f"{result.seconds:.1f} s; wrote {out}")

@@ -28,12 +28,23 @@ import numpy as np
 import scipy.linalg
 from scipy.linalg.blas import dsymm
 
-__all__ = ["EVD_SHARE", "WARM_TOLERANCE", "guard_count", "cold_eigh", "warm_eigh"]
+__all__ = ["EVD_SHARE", "WARM_TOLERANCE", "SOLVE_OVERHEAD_SIZE", "guard_count", "cold_eigh", "warm_eigh", "solve_cost"]
 
 #: Above this share of wanted eigenpairs (count / size) the full divide and conquer beats the MRRR subset driver.
 EVD_SHARE = 0.28
 #: The certified relative eigenvalue error a warm start must reach (the cold solve is exact to ~1e-14 relative).
 WARM_TOLERANCE = 1e-14
+
+#: The basis size N whose dense solve costs as much as the fixed overhead of a fit iteration: one iteration of a
+#: degree-8 fit (202 eigenvalues, one thread) took 2.2 ms at N = 64, 4.1 ms at 225, 30 ms at 676 and 123 ms at
+#: 1296, about (1 + (N / 150)²) · 1.5 ms.
+SOLVE_OVERHEAD_SIZE = 150
+
+
+def solve_cost(size: int) -> float:
+    """The relative cost of one spectrum and its derivatives on a basis of ``size`` functions: 1 + (N/150)²
+    (:data:`SOLVE_OVERHEAD_SIZE`), the unit of a fit's work (:mod:`shspec.inverse.race`)."""
+    return 1.0 + (size / SOLVE_OVERHEAD_SIZE) ** 2
 
 
 def guard_count(nwanted: int, size: int) -> int:

@@ -28,7 +28,7 @@ from ..sphere.harmonics import check_degree, degree_order, degrees, lmax_of_size
 from ..sphere.random import random_centred_coefficients, random_coefficients
 from ..sphere.rotate import power_spectrum, rotate_coefficients
 from ..threads import reproducible_call, serialized
-from .eigen import cold_eigh, guard_count, warm_eigh
+from .eigen import cold_eigh, guard_count, solve_cost, warm_eigh
 from .gridforms import GridQuadraticForms
 from .truncation import TruncationEstimate, basis_degree_for
 
@@ -315,6 +315,10 @@ class HarmonicModel(SpectralModel):
         if (la, lb) not in self._restricted:
             self._restricted[(la, lb)] = HarmonicModel(lb, la, table=self.table, check_positive=self.check_positive)
         return self._restricted[(la, lb)]
+
+    def solve_cost(self, k: int) -> float:
+        """:func:`~shspec.galerkin.eigen.solve_cost` of the basis: the dense solve dominates, whatever ``k``."""
+        return solve_cost(ncoeffs(self.lmax))
 
     def stage_basis(self, level: int | None, numeig: int, tol: float) -> int | None:
         """The smallest basis degree Lb' < Lb on which the first ``numeig`` eigenvalues of a reference ρ of degree

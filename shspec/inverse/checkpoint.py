@@ -33,16 +33,18 @@ from .results import StartResult
 __all__ = ["fingerprint", "save_checkpoint", "load_checkpoint", "describe_checkpoint", "claim_checkpoint",
            "save_result", "load_result_summary", "TARGET_RTOL", "CHECKPOINT_FORMAT"]
 
-#: Format version of checkpoints and result files (2: the target spectrum is stored, not hashed).
-CHECKPOINT_FORMAT = 2
+#: Format version of checkpoints and result files (2: the target spectrum is stored, not hashed; 3: every start
+#: carries its work, :mod:`~shspec.inverse.race`).
+CHECKPOINT_FORMAT = 3
 
 #: Largest difference between a checkpoint's target spectrum and the resuming fit's, relative to the largest
 #: eigenvalue, that still counts as the same target (round-off of how the target was computed).
 TARGET_RTOL = 1e-12
 
 #: Options that do not change the computation of a start, left out of the fingerprint (a checkpoint can be
-#: continued with more starts, or with every start after a fit that stopped at its first success).
-_IGNORED = ("checkpoint_every", "checkpoint_path", "progress", "starts", "stop_at_success")
+#: continued with more starts, or with every start after a fit that stopped at its first success; its finished
+#: starts ran to their end, whatever the race).
+_IGNORED = ("checkpoint_every", "checkpoint_path", "progress", "starts", "stop_at_success", "race")
 
 
 def options_dict(options: FitOptions) -> dict:
@@ -66,7 +68,7 @@ def fingerprint(options: FitOptions, target_eigenvalues, model_description: str)
 def _write_start(group: h5py.Group, r: StartResult) -> None:
     for name in ("params", "history", "eigenvalues"):
         group.create_dataset(name, data=getattr(r, name))
-    for name in ("index", "energy", "relative_residual", "iterations", "seconds", "status", "success"):
+    for name in ("index", "energy", "relative_residual", "iterations", "seconds", "status", "success", "work"):
         group.attrs[name] = getattr(r, name)
 
 
@@ -75,7 +77,7 @@ def _read_start(group: h5py.Group) -> StartResult:
     return StartResult(index=int(a["index"]), params=group["params"][()], energy=float(a["energy"]),
                        relative_residual=float(a["relative_residual"]), iterations=int(a["iterations"]),
                        seconds=float(a["seconds"]), status=str(a["status"]), history=group["history"][()],
-                       eigenvalues=group["eigenvalues"][()], success=bool(a["success"]))
+                       eigenvalues=group["eigenvalues"][()], success=bool(a["success"]), work=float(a["work"]))
 
 
 def _content_checksum(f: h5py.File) -> str:
@@ -148,6 +150,7 @@ def save_checkpoint(path, fp: str, finished: list, progress, target_eigenvalues)
             c = f.create_group("current")
             c.attrs["index"], c.attrs["stage"], c.attrs["seconds"] = progress.index, progress.stage, progress.seconds
             c.attrs["status"] = progress.status
+            c.attrs["work"], c.attrs["stage_work"] = progress.work, progress.stage_work
             c.create_dataset("base", data=progress.base)
             c.create_dataset("history", data=np.array(progress.history, dtype=float).reshape(-1, 3))
             if progress.state is not None:
@@ -189,7 +192,8 @@ def load_checkpoint(path, fp: str, target_eigenvalues):
                 progress = StartProgress(index=int(c.attrs["index"]), stage=int(c.attrs["stage"]),
                                          base=c["base"][()], state=state,
                                          history=[tuple(row) for row in c["history"][()]],
-                                         seconds=float(c.attrs["seconds"]), status=str(c.attrs["status"]))
+                                         seconds=float(c.attrs["seconds"]), status=str(c.attrs["status"]),
+                                         work=float(c.attrs["work"]), stage_work=float(c.attrs["stage_work"]))
     except CheckpointError:
         raise
     except Exception as exc:

@@ -11,6 +11,7 @@ from ..spectral_model import SpectralModel
 from .hops import basin_hop, orient_new_block
 from .optimize import make_optimizer
 from .problem import FitProblem, StartProgress
+from .race import ABANDONED, RaceLost
 from .results import StartResult
 
 __all__ = ["run_start"]
@@ -31,10 +32,16 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
     Returns
     -------
     StartResult
+        Status "abandoned" when ``progress.bound`` says that a start of its round succeeded after less work
+        (:mod:`~shspec.inverse.race`).
     """
     t0 = time.perf_counter() - progress.seconds
     try:
         return _run(problem, progress, checkpoint, t0)
+    except RaceLost as lost:
+        progress.status = ABANDONED
+        progress.say(problem.options, f"  start {progress.index} abandoned: {lost}")
+        return progress.result(ABANDONED, time.perf_counter() - t0, False)
     finally:
         # one clock per start: an interrupt anywhere, in the hops too, leaves its time up to date for the result
         progress.seconds = time.perf_counter() - t0
@@ -53,6 +60,7 @@ def _run(problem: FitProblem, progress: StartProgress, checkpoint, t0: float) ->
         ev = obj.evaluate(obj.initial())
         progress.params, progress.eigenvalues = progress.base, ev.eigenvalues
         progress.energy, progress.relative_residual = ev.energy, ev.relative_residual
+        progress.work = progress.stage_work
     for s in range(progress.stage, len(problem.stages)):
         resumed = progress.state is not None and s == progress.stage
         if not resumed and s == progress.stage and progress.history:
@@ -60,9 +68,10 @@ def _run(problem: FitProblem, progress: StartProgress, checkpoint, t0: float) ->
             # start, which already holds its perturbation, and forget what it had recorded
             params = progress.base
             progress.history = [row for row in progress.history if row[0] < s]
+            progress.work = progress.stage_work
         elif not resumed:
             params = problem.enter_stage(s, params, np.random.default_rng([*rng_seed, s + 1]))
-            progress.stage, progress.base = s, params
+            progress.stage, progress.base, progress.stage_work = s, params, progress.work
         if problem.search is not None and s == problem.search + 1:  # decided from the stage's start alone: the
             hop_at_end = not problem.search_basis_holds(progress.base)  # same in a resumed run
         try:
@@ -94,6 +103,7 @@ def _run(problem: FitProblem, progress: StartProgress, checkpoint, t0: float) ->
             progress.state = optimizer.state()
             progress.history.append((s, optimizer.ev.energy, optimizer.ev.relative_residual))
             record()
+            progress.add_work(obj.cost)
             if progress.display is not None:
                 progress.display.iteration(progress.index, s, optimizer.iteration, optimizer.ev.relative_residual)
             if checkpoint is not None and opt.checkpoint_every and (len(progress.history) - 1) % opt.checkpoint_every == 0:
@@ -120,7 +130,7 @@ def _run(problem: FitProblem, progress: StartProgress, checkpoint, t0: float) ->
     if opt.basin_hops and hop_at_end and not progress.succeeded(problem):
         if progress.stage <= last:
             # checkpoint the end of the stages, so that a resume repeats only the (deterministic) hops
-            progress.stage, progress.base = last + 1, progress.params
+            progress.stage, progress.base, progress.stage_work = last + 1, progress.params, progress.work
             if checkpoint is not None and opt.checkpoint_every:
                 checkpoint(progress)
         progress.status = basin_hop(problem, progress, progress.status, last)

@@ -150,6 +150,12 @@ class Objective:
     def nfree(self) -> int:
         return self.parametrization.nfree
 
+    @property
+    def cost(self) -> float:
+        """The work of one iteration here (:mod:`~shspec.inverse.race`): the model's
+        :meth:`~shspec.spectral_model.SpectralModel.solve_cost` for the target's eigenvalues."""
+        return self.model.solve_cost(self.target.size)
+
     def params(self, x) -> np.ndarray:
         """Full parameters (nparams,) for free values x (nfree,)."""
         return self.parametrization.params(x)

@@ -52,6 +52,7 @@ def hop_once(problem: FitProblem, progress: StartProgress, s: int, moves: list, 
                 optimizer.iteration < extend and progress.energy <= energies[-1]
                 <= (1.0 - _FALLING) * energies[-1 - min(_FALLING_SPAN, len(energies) - 1)])):
             optimizer.step()
+            progress.add_work(obj.cost)
             energies.append(optimizer.ev.energy)
             hist.append((s, optimizer.ev.energy, optimizer.ev.relative_residual))
         return optimizer, obj, hist
@@ -59,6 +60,7 @@ def hop_once(problem: FitProblem, progress: StartProgress, s: int, moves: list, 
     def energy(q):
         try:
             obj = problem.objective(s, q)
+            progress.add_work(obj.cost)
             return obj.values(obj.initial()).energy
         except NotPositiveError:
             return np.inf

@@ -3,8 +3,9 @@
 A round start never leaves the even subspace (at an even ρ the gradient along odd degrees is exactly 0,
 :doc:`/theory`), so every start is random, with odd degrees.  Starts run one after the other, or on an executor,
 with the same bits either way (:func:`shspec.threads.reproducible`); each writes checkpoints if asked, and Ctrl-C
-ends the fit cleanly with the best state so far.  By default the fit stops at its first successful start
-(:attr:`FitOptions.stop_at_success`): it keeps starts 0, ..., i for the lowest successful index i, whatever order
+ends the fit cleanly with the best state so far.  By default the fit stops at a success
+(:attr:`FitOptions.stop_at_success`): the starts race in rounds of :attr:`FitOptions.race`, and the answer is the
+success of the first round that has one that took the least work (:mod:`~shspec.inverse.race`), whatever order
 the starts ended in.
 """
 
@@ -28,6 +29,7 @@ from .driver import run_start
 from .options import FitOptions
 from .problem import FitProblem, StartProgress
 from .progress import FitDisplay
+from .race import ABANDONED, RaceBoard, RaceBound, best_success, race_outcome, race_round
 from .results import FitResult, StartResult
 from ..targets import Target
 from ..threads import reproducible_call
@@ -60,19 +62,20 @@ def distinct_solutions(starts: list, model: SpectralModel, tol: float) -> list:
     return reps
 
 
-def _first_success(finished: list) -> float:
-    """The lowest index of a successful start among ``finished``, or inf."""
-    return min((r.index for r in finished if r.success), default=math.inf)
+def _won_round(finished: list, width: int) -> float:
+    """The lowest race round (of ``width`` starts) with a successful start among ``finished``, or inf."""
+    return min((race_round(r.index, width) for r in finished if r.success), default=math.inf)
 
 
 #: Seconds an interrupted fit waits for the running starts of its process pool to send back their best states.
 INTERRUPT_GRACE = 30.0
 
 
-def _run_fresh_start(problem: FitProblem, index: int) -> StartResult:
-    """One start from scratch (the task sent to an executor's worker): no checkpoints inside it."""
+def _run_fresh_start(problem: FitProblem, index: int, bound: RaceBound | None) -> StartResult:
+    """One start from scratch (the task sent to an executor's worker), in the race with ``bound``: no checkpoints
+    inside it."""
     rng = np.random.default_rng([problem.options.seed, index])
-    return _continue_start(problem, StartProgress(index, 0, problem.initial(rng, index), None))
+    return _continue_start(problem, StartProgress(index, 0, problem.initial(rng, index), None, bound=bound))
 
 
 @reproducible_call
@@ -94,55 +97,74 @@ def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finish
     """Run the pending starts (in order of their index; ``current``, a start a checkpoint left running, from its
     state) on ``executor``; finished starts are appended (and checkpointed) as they complete.
 
-    With ``stop_at_success``, once start i succeeded the pending starts above i are cancelled and the running ones
-    no longer waited for; the starts below i are, one of them may succeed too.  Returns True if Ctrl-C stopped it
-    (the running starts are cancelled where the executor can)."""
-    stop = problem.options.stop_at_success
-    first = _first_success(finished)
+    With ``stop_at_success``, once a start of race round r succeeded (:mod:`~shspec.inverse.race`) its work is
+    posted to the other starts of round r, which stop once they pass it, the pending starts of later rounds are
+    cancelled and the running ones no longer waited for; the starts of earlier rounds are, one of them may succeed
+    too.  Returns True if Ctrl-C stopped it (the running starts are cancelled where the executor can)."""
+    stop, width = problem.options.stop_at_success, problem.options.race
+    won = _won_round(finished, width)
     futures = {}
-    for i in pending:
-        if current is not None and current.index == i:
-            futures[executor.submit(_continue_start, problem, current)] = i
-        else:
-            futures[executor.submit(_run_fresh_start, problem, i)] = i
-    waiting = set(futures)
-    try:
-        while waiting:
-            ended, waiting = wait(waiting, return_when=FIRST_COMPLETED)
-            for future in sorted(ended, key=futures.get):
-                finished.append(future.result())
-                if checkpoint is not None:
-                    checkpoint(None)
-                display.start_done(finished[-1])
-                if stop and finished[-1].success and finished[-1].index < first:
-                    first = finished[-1].index
-                    skipped = [f for f in waiting if futures[f] > first]
-                    if skipped:
-                        # a process pool may already run a start it queued: its result is dropped, not awaited
-                        display.message(f"start {first} succeeded: the {len(skipped)} start(s) after it are not "
-                                        "waited for and their results are dropped (stop_at_success)")
-                    before = sorted(futures[f] for f in waiting if futures[f] < first)
-                    if before:
-                        # the wait can be long (a failing start's last round of hops ran 186 s at degree 8), and
-                        # the console is silent meanwhile: say why, and how to take the success now
-                        display.message(f"start {first} succeeded; waiting for start(s) {', '.join(map(str, before))} "
-                                        "before it, as the result is the lowest successful start, the same as a "
-                                        f"serial run's. Ctrl-C takes start {first}'s result now (an interrupted "
-                                        "fit keeps its finished starts)")
-            if stop and first < math.inf:
-                for future in [f for f in waiting if futures[f] > first]:
-                    future.cancel()  # a running start of a process pool goes on there, unwaited for
-                    waiting.discard(future)
-    except KeyboardInterrupt:
-        for future in futures:
-            future.cancel()
-        _collect_interrupted(executor, {f for f in waiting if not f.cancelled()}, finished, display)
-        return True
-    except BaseException:
-        for future in futures:
-            future.cancel()
-        raise
+    with RaceBoard() as board:
+        for i in pending:
+            bound = RaceBound(i, best_success(finished, i, width), board.path(race_round(i, width))) if stop else None
+            if current is not None and current.index == i:
+                current.bound = bound
+                futures[executor.submit(_continue_start, problem, current)] = i
+            else:
+                futures[executor.submit(_run_fresh_start, problem, i, bound)] = i
+        waiting = set(futures)
+        try:
+            while waiting:
+                ended, waiting = wait(waiting, return_when=FIRST_COMPLETED)
+                for future in sorted(ended, key=futures.get):
+                    finished.append(future.result())
+                    if checkpoint is not None:
+                        checkpoint(None)
+                    display.start_done(finished[-1])
+                    if stop and finished[-1].success:
+                        won = min(won, _posted(board, finished[-1], waiting, futures, won, width, display))
+                if stop and won < math.inf:
+                    for future in [f for f in waiting if race_round(futures[f], width) > won]:
+                        future.cancel()  # a running start of a process pool goes on there, unwaited for
+                        waiting.discard(future)
+        except KeyboardInterrupt:
+            for future in futures:
+                future.cancel()
+            _collect_interrupted(executor, {f for f in waiting if not f.cancelled()}, finished, display)
+            return True
+        except BaseException:
+            for future in futures:
+                future.cancel()
+            raise
     return False
+
+
+def _posted(board: RaceBoard, result: StartResult, waiting: set, futures: dict, won: float, width: int,
+            display: FitDisplay) -> int:
+    """Post the success ``result`` to the other starts of its round on ``board``, say on the console what the fit
+    waits for now, and return its round."""
+    rnd = race_round(result.index, width)
+    board.post(rnd, result.work, result.index)
+    if rnd >= won:
+        return rnd
+    later = [f for f in waiting if race_round(futures[f], width) > rnd]
+    if later:
+        # a process pool may already run a start it queued: its result is dropped, not awaited
+        display.message(f"start {result.index} succeeded: the {len(later)} start(s) of later rounds are not waited "
+                        "for and their results are dropped (stop_at_success)")
+    rivals = sorted(futures[f] for f in waiting if race_round(futures[f], width) == rnd)
+    if rivals:
+        display.message(f"start {result.index} succeeded after work {result.work:.4g}; start(s) "
+                        f"{', '.join(map(str, rivals))} of its round go on only while they have done less")
+    before = sorted(futures[f] for f in waiting if race_round(futures[f], width) < rnd)
+    if before:
+        # the wait can be long (a failing start's last round of hops ran 186 s at degree 8), and the console is
+        # silent meanwhile: say why, and how to take the success now
+        display.message(f"start {result.index} succeeded; waiting for start(s) {', '.join(map(str, before))} of "
+                        "earlier rounds, as the result is that of the first round with a success, the same as a "
+                        f"serial run's. Ctrl-C takes start {result.index}'s result now (an interrupted fit keeps its "
+                        "finished starts)")
+    return rnd
 
 
 def _collect_interrupted(executor: Executor, running: set, finished: list, display: FitDisplay) -> None:
@@ -191,8 +213,10 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
         ``Client.get_executor()``; see :func:`shspec.parallel.make_executor`); None or a
         :class:`~shspec.parallel.SerialExecutor`: here, one after the other.  Each start is independent and
         seeded by its index, so the results are those of a serial run, with :attr:`~FitOptions.stop_at_success`
-        too: when start i succeeds, the pending starts after it are cancelled and the fit waits only for the
-        running starts before it (one of them may succeed, and then it is the answer); starts after the first success that ended anyway are left out of the result.  A start already
+        too (:mod:`~shspec.inverse.race`): when a start of race round r succeeds, the other starts of round r go
+        on only while they have done less work, the pending starts of later rounds are cancelled, and the fit
+        waits for the running starts of earlier rounds (one of them may succeed, and then it is the answer);
+        starts that ended anyway but lost the race are left out of the result.  A start already
         running in a process pool cannot be cancelled: the fit returns without its result, but it goes on in its
         worker until it ends, and leaving a ``with ProcessPoolExecutor()`` block waits for it;
         :func:`shspec.parallel.stop_executor` ends it at once (``shspec fit`` does).  On Ctrl-C the running starts
@@ -207,7 +231,8 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     Returns
     -------
     FitResult
-        Every start run (with ``stop_at_success``: up to the first that succeeded), the distinct local solutions
+        Every start run (with ``stop_at_success``: those of the rounds up to the first with a success, without
+        the starts that lost the race, :func:`~shspec.inverse.race.race_outcome`), the distinct local solutions
         (best first), and whether Ctrl-C stopped the fit.  On Ctrl-C the
         running start is reported with status "interrupted" and its best state, and a checkpoint is written if a
         path is set.
@@ -236,6 +261,8 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     current: StartProgress | None = None
     if resume and options.checkpoint_path is not None and Path(options.checkpoint_path).exists():
         finished, current, stored = load_checkpoint(options.checkpoint_path, fp, target.eigenvalues)
+        if not options.stop_at_success:  # a start the race abandoned runs to its end now
+            finished = [r for r in finished if r.status != ABANDONED]
         if not np.array_equal(stored, target.eigenvalues):  # round-off apart: go on with the checkpoint's own
             target = dataclasses.replace(target, eigenvalues=stored)  # target, as the uninterrupted fit did
             problem = FitProblem(model, target, options, init=init, executor=executor)
@@ -246,10 +273,8 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     finally:
         display.close()
     if options.stop_at_success:
-        # the starts a serial run would have run: those after the first success (finished on an executor, or in a
-        # checkpoint of a fit that ran every start) are left out
-        first = _first_success(finished)
-        finished = [r for r in finished if r.index <= first]
+        # what a serial run reports, wherever the starts ran and whenever the race reached them
+        finished = race_outcome(finished, options.race)
     if not finished:
         raise KeyboardInterrupt
     finished.sort(key=lambda r: r.index)
@@ -261,15 +286,16 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
 def _run_starts(problem: FitProblem, executor, finished: list, current, done: set, fp: str,
                 display: FitDisplay) -> bool:
     """Run the starts not in ``done`` (on ``executor``, or here one after the other, ``current`` first when a
-    checkpoint left one running), appending them to ``finished``, up to the first success with ``stop_at_success``;
+    checkpoint left one running), appending them to ``finished``, up to the first round with a success with
+    ``stop_at_success`` (a start after a success of its round runs only while it has done less work);
     returns whether an interrupt stopped them."""
     options, target = problem.options, problem.target
 
     def checkpoint(progress):
         save_checkpoint(options.checkpoint_path, fp, finished, progress, target.eigenvalues)
 
-    def stopped(i: int) -> bool:  # a start before i succeeded, and the fit stops there
-        return options.stop_at_success and _first_success(finished) < i
+    def stopped(i: int) -> bool:  # a start of a round before i's succeeded, and the fit stops there
+        return options.stop_at_success and _won_round(finished, options.race) < race_round(i, options.race)
 
     interrupted = False
     if executor is not None:
@@ -283,7 +309,7 @@ def _run_starts(problem: FitProblem, executor, finished: list, current, done: se
             if i in done:
                 continue
             if stopped(i):
-                display.message(f"start {_first_success(finished)} succeeded: the fit stops there (stop_at_success)")
+                display.message("a start of an earlier round succeeded: the fit stops there (stop_at_success)")
                 break
             # the whole step is guarded: an interrupt (Ctrl-C, SIGTERM) between two starts keeps the finished ones too
             try:
@@ -291,6 +317,8 @@ def _run_starts(problem: FitProblem, executor, finished: list, current, done: se
                     current = StartProgress(i, 0, problem.initial(np.random.default_rng([options.seed, i]), i),
                                             None)
                 current.display = display
+                if options.stop_at_success:
+                    current.bound = RaceBound(i, best_success(finished, i, options.race))
                 finished.append(run_start(problem, current, checkpoint if options.checkpoint_path else None))
                 display.start_done(finished[-1])
                 current = None

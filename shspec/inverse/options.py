@@ -59,9 +59,14 @@ class FitOptions:
     starts : int
         Number of random symmetry-broken starts (default 4).
     stop_at_success : bool
-        Stop at the first start that succeeds (default): the fit keeps starts 0, ..., i for the lowest index i that
-        succeeds, the same starts and numbers whether they ran one after the other or on an executor
-        (:func:`~shspec.inverse.fit`).  False: run every start, e.g. to count the local solutions.
+        Stop at a success (default): the starts race in rounds of ``race``, and the fit keeps the first round with
+        a success, up to its success of least work (:mod:`~shspec.inverse.race`), the same starts and numbers
+        whether they ran one after the other or on an executor (:func:`~shspec.inverse.fit`).  False: run every
+        start, e.g. to count the local solutions.
+    race : int
+        Starts per round of the race (default 2, the cores of the machine the goals were measured on): on a pool
+        of as many workers a round ends about when its first success comes in; one after the other, a start after
+        a success of its round runs up to the success's work.  1: the first successful start by index wins.
     seed : int
         Seed of every random choice: start i uses ``numpy.random.default_rng([seed, i])``.
     start_amplitude : float
@@ -125,6 +130,7 @@ class FitOptions:
     search_basis_tol: float | None = 1e-6
     starts: int = 4
     stop_at_success: bool = True
+    race: int = 2
     seed: int = 0
     start_amplitude: float = 0.2
     max_iter: int = 200
@@ -163,6 +169,7 @@ class FitOptions:
         if self.search_basis_tol is not None:
             check_float(self.search_basis_tol, "search_basis_tol", positive=True)
         check_int(self.starts, "starts", minimum=1)
+        check_int(self.race, "race", minimum=1)
         check_int(self.seed, "seed", minimum=0)
         check_float(self.start_amplitude, "start_amplitude", positive=True)
         check_int(self.max_iter, "max_iter", minimum=1)

@@ -1,10 +1,10 @@
 """What a finished fit writes: a JSON-ready summary, result.h5 and the figures, in one directory.
 
 The summary holds everything needed to judge the fit without opening the HDF5 file: the model, the target, the
-options, every start (energy, residual, iterations, time, why it stopped, whether it succeeded), the best solution
-as a pyshtools cilm array and, when the target knows its truth, the errors after Möbius + O(3) alignment (and the
-model's own comparison, e.g. per-vertex factor errors on a mesh), and what the matched eigenvalues determine at
-the solution (``identifiability``: free parameters, rank, condition, estimated error, noise gain; see
+options, every start (energy, residual, iterations, time, work, why it stopped, whether it succeeded), the best
+solution as a pyshtools cilm array and, when the target knows its truth, the errors after Möbius + O(3) alignment
+(and the model's own comparison, e.g. per-vertex factor errors on a mesh), and what the matched eigenvalues
+determine at the solution (``identifiability``: free parameters, rank, condition, estimated error, noise gain; see
 :mod:`shspec.inverse.identifiability`).  A start *succeeds* when its largest relative
 eigenvalue residual max_i |λ_i − λ*_i|/λ*_i (i ≥ 1) is at most ``FitOptions.success_tol``; the summary says so.
 """
@@ -96,7 +96,8 @@ def summary(result: FitResult) -> dict:
         "successes": result.success_count, "time_s": result.seconds, "interrupted": result.interrupted,
         "solutions": [{"start": result.starts[i].index, "energy": result.starts[i].energy} for i in result.solutions],
         "starts": [{"index": r.index, "energy": r.energy, "relative_residual": r.relative_residual,
-                    "iterations": r.iterations, "time_s": r.seconds, "status": r.status, "success": r.success}
+                    "iterations": r.iterations, "time_s": r.seconds, "work": r.work, "status": r.status,
+                    "success": r.success}
                    for r in result.starts],
     }
     out["cilm"] = result.factor().to_cilm().tolist()

@@ -233,6 +233,12 @@ class StartProgress:
     seconds : float
         Time spent in this start: before the current run (resumed starts) while it runs, up to date after each
         iteration and whenever :func:`~shspec.inverse.driver.run_start` returns or is interrupted.
+    work : float
+        The start's work so far (:mod:`~shspec.inverse.race`): its optimizer iterations and its hops' move solves,
+        each weighted by its stage's :attr:`~shspec.inverse.energy.Objective.cost`.
+    stage_work : float
+        ``work`` when the start entered its current stage (or its final hops): where a resume that runs the stage
+        again restarts the count.
     """
 
     index: int
@@ -246,9 +252,21 @@ class StartProgress:
     relative_residual: float = np.inf
     eigenvalues: np.ndarray | None = None
     status: str = "max_iter"
+    work: float = 0.0
+    stage_work: float = 0.0
+    #: what the start knows of its round's best success (:class:`~shspec.inverse.race.RaceBound`; None: no race);
+    #: not part of a checkpoint
+    bound: object = field(default=None, repr=False, compare=False)
     #: the fit's :class:`~shspec.inverse.progress.FitDisplay` while it runs here (None in an executor's worker,
     #: whose lines go to its own stderr); not part of a checkpoint
     display: object = field(default=None, repr=False, compare=False)
+
+    def add_work(self, cost: float) -> None:
+        """Count ``cost`` more work; raises :class:`~shspec.inverse.race.RaceLost` once the start can no longer win
+        its round."""
+        self.work += cost
+        if self.bound is not None:
+            self.bound.check(self.work)
 
     def say(self, options, text: str) -> None:
         """Report a line of this start: through the fit's display, else (a worker) on stderr if ``progress``."""
@@ -264,7 +282,7 @@ class StartProgress:
                            relative_residual=float(self.relative_residual),
                            iterations=max(len(self.history) - 1, 0), seconds=seconds, status=status,
                            history=np.array(self.history, dtype=float).reshape(-1, 3),
-                           eigenvalues=np.array(self.eigenvalues), success=bool(success))
+                           eigenvalues=np.array(self.eigenvalues), success=bool(success), work=float(self.work))
 
     def succeeded(self, problem: FitProblem, final: bool = False) -> bool:
         """Whether the start's state so far fits the target (:meth:`FitProblem.succeeded`): as its current stage

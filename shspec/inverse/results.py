@@ -39,13 +39,17 @@ class StartResult:
     seconds : float
         Wall time of this start.
     status : str
-        Why the last stage stopped ("residual_tol", "step_tol", "energy_tol", "max_iter", "interrupted", ...).
+        Why the last stage stopped ("residual_tol", "step_tol", "energy_tol", "max_iter", "interrupted", ...), or
+        "abandoned" (:mod:`~shspec.inverse.race`; such starts are not part of a :class:`FitResult`).
     history : (iterations + 1, 3) array
         Columns: stage index, energy, relative residual, after each iteration (row 0: the start).
     eigenvalues : (k,) array
         Final matched eigenvalues.
     success : bool
         relative_residual ≤ :attr:`FitOptions.success_tol`.
+    work : float
+        The start's work (:mod:`~shspec.inverse.race`): iterations and move solves weighted by their stage's cost,
+        the same on any machine; it decides which success a fit reports.
     """
 
     index: int
@@ -58,6 +62,7 @@ class StartResult:
     history: np.ndarray = field(repr=False)
     eigenvalues: np.ndarray = field(repr=False)
     success: bool = False
+    work: float = 0.0
 
 
 @dataclass(frozen=True)
