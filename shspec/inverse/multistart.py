@@ -125,7 +125,9 @@ def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finish
                         won = min(won, _posted(board, finished[-1], waiting, futures, won, width, display))
                 if stop and won < math.inf:
                     for future in [f for f in waiting if race_round(futures[f], width) > won]:
-                        future.cancel()  # a running start of a process pool goes on there, unwaited for
+                        # a running start of a process pool cannot be cancelled: the board ends it
+                        if not future.cancel():
+                            board.close(race_round(futures[future], width))
                         waiting.discard(future)
         except KeyboardInterrupt:
             for future in futures:
@@ -149,9 +151,8 @@ def _posted(board: RaceBoard, result: StartResult, waiting: set, futures: dict, 
         return rnd
     later = [f for f in waiting if race_round(futures[f], width) > rnd]
     if later:
-        # a process pool may already run a start it queued: its result is dropped, not awaited
         display.message(f"start {result.index} succeeded: the {len(later)} start(s) of later rounds are not waited "
-                        "for and their results are dropped (stop_at_success)")
+                        "for, and the running ones end at their next look at the race (stop_at_success)")
     rivals = sorted(futures[f] for f in waiting if race_round(futures[f], width) == rnd)
     if rivals:
         display.message(f"start {result.index} succeeded after work {result.work:.4g}; start(s) "
@@ -216,9 +217,9 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
         too (:mod:`~shspec.inverse.race`): when a start of race round r succeeds, the other starts of round r go
         on only while they have done less work, the pending starts of later rounds are cancelled, and the fit
         waits for the running starts of earlier rounds (one of them may succeed, and then it is the answer);
-        starts that ended anyway but lost the race are left out of the result.  A start already
-        running in a process pool cannot be cancelled: the fit returns without its result, but it goes on in its
-        worker until it ends, and leaving a ``with ProcessPoolExecutor()`` block waits for it;
+        starts that ended anyway but lost the race are left out of the result.  A start of a later round already
+        running in a process pool cannot be cancelled: the fit returns without its result, and it ends in its
+        worker at its next look at the race (within :data:`~shspec.inverse.race.POLL_SECONDS` and one iteration);
         :func:`shspec.parallel.stop_executor` ends it at once (``shspec fit`` does).  On Ctrl-C the running starts
         of a :class:`~shspec.parallel.WorkerPool` (``make_executor(workers=N)``) are interrupted and their best
         states, status "interrupted", are part of the result (waited for up to :data:`INTERRUPT_GRACE` seconds).

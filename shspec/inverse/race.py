@@ -15,8 +15,9 @@ last round of hops ran 186 s at degree 8).  One after the other, the starts of a
 its work.
 
 The starts learn their round's best success from a file (:class:`RaceBoard`) that they read every
-:data:`POLL_SECONDS`; a start whose process cannot read it (a Dask worker on another machine) runs to its end,
-which changes the time, never the result.
+:data:`POLL_SECONDS`; the starts of rounds after the first with a success read there that they can stop at once.  A
+start whose process cannot read the file (a Dask worker on another machine) runs to its end, which changes the
+time, never the result.
 """
 
 from __future__ import annotations
@@ -86,6 +87,8 @@ class RaceBound:
             if posted is not None and (self.best is None or posted < self.best):
                 self.best = posted
         if self.best is not None and (work, self.index) > self.best:
+            if self.best[1] < 0:
+                raise RaceLost("a start of an earlier round succeeded")
             raise RaceLost(f"start {self.best[1]} of its round succeeded after work {self.best[0]:.6g}, which this "
                            f"one has reached ({work:.6g}) without success")
 
@@ -118,6 +121,11 @@ class RaceBoard:
         if rnd < 0:
             raise InvalidArgumentError(f"a race round is a non-negative integer, got {rnd}")
         return os.path.join(self._dir.name, f"round-{rnd}")
+
+    def close(self, rnd: int) -> None:
+        """An earlier round than ``rnd`` has a success: the running starts of round ``rnd`` are no longer needed and
+        end at their next read of the board (a process pool cannot cancel a running task)."""
+        self.post(rnd, -math.inf, -1)
 
     def post(self, rnd: int, work: float, index: int) -> None:
         """A start of round ``rnd`` succeeded after ``work``: post it if it beats the round's best.  Written to a
