@@ -262,11 +262,12 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     current: StartProgress | None = None
     if resume and options.checkpoint_path is not None and Path(options.checkpoint_path).exists():
         finished, current, stored = load_checkpoint(options.checkpoint_path, fp, target.eigenvalues)
-        if not options.stop_at_success:  # a start the race abandoned runs to its end now
-            finished = [r for r in finished if r.status != ABANDONED]
-        if not np.array_equal(stored, target.eigenvalues):  # round-off apart: go on with the checkpoint's own
-            target = dataclasses.replace(target, eigenvalues=stored)  # target, as the uninterrupted fit did
-            problem = FitProblem(model, target, options, init=init, executor=executor)
+        # a start the race abandoned runs again: its bound depends on the rounds, and a resumed fit may race in
+        # others (FitOptions.race is not part of the fingerprint) or run every start
+        finished = [r for r in finished if r.status != ABANDONED]
+        if not np.array_equal(stored, target.eigenvalues):
+            # round-off apart: go on with the checkpoint's own target, as the uninterrupted fit did
+            problem = problem.with_target(dataclasses.replace(target, eigenvalues=stored))
     done = {r.index for r in finished}
     display = FitDisplay(options.starts, len(problem.stages), options.progress, done=len(done))
     try:

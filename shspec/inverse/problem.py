@@ -10,6 +10,7 @@ its new level, ``default_rng([seed, i, stage + 1])``: a run is reproducible, and
 
 from __future__ import annotations
 
+import copy
 import sys
 from dataclasses import dataclass, field, replace
 
@@ -126,6 +127,15 @@ class FitProblem:
             print("stage bases (degree:eigenvalues -> basis degree): " + ", ".join(
                 f"{st.lmax_factor}:{st.numeig or target.numeig} -> {b}" for st, b in zip(self.stages, self.bases)
                 if b is not None), file=sys.stderr, flush=True)
+
+    def with_target(self, target: Target) -> "FitProblem":
+        """This problem with ``target`` instead, of as many eigenvalues (a checkpoint's own copy of the target,
+        round-off apart): the stages and their bases depend on the target's size only, and are kept."""
+        if not isinstance(target, Target) or target.numeig != self.target.numeig:
+            raise InvalidArgumentError(f"the target must be a Target of {self.target.numeig} eigenvalues")
+        new = copy.copy(self)
+        new.target, new.fit_area, new.area = target, fits_area(self.options, target), target.area_estimate()
+        return new
 
     def level(self, s: int) -> int | None:
         """The level (harmonic models: the factor's degree) of stage s, None for the model's own."""

@@ -94,7 +94,12 @@ def test_a_target_moved_by_ulps_still_resumes(small, tmp_path, monkeypatch):
     # in the fingerprint then called the checkpoint "of another fit"
     target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, monkeypatch)
     moved = dataclasses.replace(target, eigenvalues=np.nextafter(target.eigenvalues, np.inf))
+    chosen = []  # the stage and search bases depend on the target's size only: chosen once, not again for its copy
+    basis = HarmonicModel.stage_basis
+    monkeypatch.setattr(HarmonicModel, "stage_basis", lambda self, *a: chosen.append(a) or basis(self, *a))
     resumed = fit(moved, model, opts, resume=True)
+    monkeypatch.setattr(HarmonicModel, "stage_basis", basis)
+    assert sorted(chosen) == [(4, 20, opts.stage_basis_tol), (6, 20, opts.search_basis_tol)]
     assert not resumed.interrupted and len(resumed.starts) == opts.starts
     # it goes on with the checkpoint's target, and ends where the uninterrupted fit ends
     assert np.array_equal(resumed.target.eigenvalues, target.eigenvalues)

@@ -188,3 +188,13 @@ def test_a_process_pool_stops_at_the_first_success_and_its_workers_end(case):
         stop_executor(pool)
     _same(pooled, serial)
     assert not any(p.is_alive() for p in processes)
+
+
+def test_a_start_the_race_abandoned_runs_again_on_resume(case, tmp_path):
+    target, model, opts, serial, every = case
+    # start 1 abandoned in a race of other rounds: its record says nothing about its own round, so it runs again
+    path = tmp_path / "ck.h5"
+    fp = fingerprint(opts, target.eigenvalues, model.describe())
+    lost = replace(every.starts[1], status=ABANDONED, success=False, work=every.starts[1].work / 2)
+    save_checkpoint(path, fp, [lost, every.starts[2]], None, target.eigenvalues)
+    _same(fit(target, model, replace(opts, checkpoint_path=str(path)), resume=True), serial)
