@@ -87,8 +87,8 @@ def run_case(name: str, work: Path) -> dict:
                   rho_error=alignment.get("relative_error"), power_error=alignment.get("power_error"),
                   recovered_1e8=bool(alignment.get("relative_error", 1.0) <= 1e-8),
                   goal_met=bool(alignment.get("relative_error", 1.0) <= 1e-8 and wall <= goal),
-                  per_start=[{k: s[k] for k in ("index", "relative_residual", "iterations", "time_s", "success")}
-                             for s in summary["starts"]])
+                  per_start=[{k: s[k] for k in ("index", "relative_residual", "iterations", "time_s", "work",
+                                                    "success")} for s in summary["starts"]])
     return record
 
 
