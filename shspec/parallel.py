@@ -23,7 +23,9 @@ Interrupts: Ctrl-C reaches every process of the terminal's group, so the workers
 and leave the decision to the pool's owner, which may end the running jobs with :meth:`WorkerPool.interrupt_workers`
 (SIGTERM to each worker).  A job that runs inside :func:`interruptible` then gets a ``KeyboardInterrupt`` and may
 return what it has (a fit's start returns its best state), once per job; an idle worker ignores the signal, so that
-its death cannot break the pool under the jobs still returning.  :func:`stop_executor` kills the workers.
+its death cannot break the pool under the jobs still returning.  :func:`stop_executor` kills the workers.  A worker
+whose owner died without stopping it (killed by SIGKILL, or by a SIGTERM it did not handle) ends itself within
+:data:`OWNER_POLL` seconds.
 """
 
 from __future__ import annotations
@@ -33,13 +35,15 @@ import multiprocessing
 import os
 import signal
 import socket
+import threading
+import time
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 
 from .checks import check_int
 from .errors import InvalidArgumentError, SchedulerError
 
 __all__ = ["SerialExecutor", "DaskExecutor", "WorkerPool", "make_executor", "stop_executor", "interruptible",
-           "usable_cores", "THREAD_VARIABLES", "CONNECT_TIMEOUT"]
+           "usable_cores", "THREAD_VARIABLES", "CONNECT_TIMEOUT", "OWNER_POLL"]
 
 #: Environment variables that cap the thread pools of BLAS/OpenMP libraries loaded after they are set.
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
@@ -79,9 +83,25 @@ def _interrupt_job(signum, frame) -> None:
         raise KeyboardInterrupt
 
 
-def _start_worker() -> None:
-    """Process-pool initializer of :class:`WorkerPool`: one thread per BLAS/numba pool, the interrupts of the
-    module notes."""
+#: Seconds between two looks of a :class:`WorkerPool`'s worker at whether its owner still lives.
+OWNER_POLL = 1.0
+
+
+def _watch_owner(owner: int) -> None:
+    """End this worker once the process that started it is gone (it was killed, SIGKILL or an unhandled SIGTERM,
+    without stopping its pool): nobody waits for its job any more, which could otherwise run on for many minutes
+    (a fit's start) on a core of the machine."""
+    while True:
+        time.sleep(OWNER_POLL)
+        if os.getppid() != owner:
+            os._exit(1)
+
+
+def _start_worker(owner: int) -> None:
+    """Process-pool initializer of :class:`WorkerPool`: an end with its ``owner`` process (:func:`_watch_owner`;
+    given, not read here: the owner may die before a worker has started), one thread per BLAS/numba pool, and the
+    interrupts of the module notes."""
+    threading.Thread(target=_watch_owner, args=(owner,), name="shspec-owner-watch", daemon=True).start()
     _one_thread_per_worker()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _interrupt_job)
@@ -110,7 +130,7 @@ class WorkerPool(ProcessPoolExecutor):
 
     def __init__(self, workers: int):
         super().__init__(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                         initializer=_start_worker)
+                         initializer=_start_worker, initargs=(os.getpid(),))
 
     def __exit__(self, exc_type, exc, tb):
         if exc_type is None:

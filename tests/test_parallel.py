@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import os
+import signal
 import socket
+import subprocess
+import sys
 import time
 
 import pytest
@@ -66,6 +70,41 @@ def test_leaving_a_worker_pool_by_an_exception_does_not_wait_for_its_jobs():
             raise KeyboardInterrupt
     assert time.perf_counter() - start < 60
     assert all(job.done() for job in jobs)  # cancelled, or failed with their workers
+
+
+_KILLED_OWNER = """
+import os, signal, time
+from shspec.parallel import _pool_processes, make_executor
+pool = make_executor(workers=2)
+jobs = [pool.submit(time.sleep, 300) for _ in range(2)]
+while not all(job.running() for job in jobs):
+    time.sleep(0.1)
+time.sleep(1.0)
+print(" ".join(str(process.pid) for process in _pool_processes(pool)), flush=True)
+os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+
+def _ended(pid: int) -> bool:
+    """Whether process ``pid`` has ended (gone, or a zombie its new parent has not reaped)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] in ("Z", "X")
+    except FileNotFoundError:
+        return True
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/stat"), reason="reads process states from /proc")
+def test_the_workers_of_a_killed_owner_end_themselves():
+    # an owner killed without stopping its pool (SIGKILL, a batch system's SIGTERM) left its workers running their
+    # jobs, a fit's start for many minutes, on the machine's cores
+    run = subprocess.run([sys.executable, "-c", _KILLED_OWNER], capture_output=True, text=True, timeout=120)
+    pids = [int(p) for p in run.stdout.split()]
+    assert run.returncode == -signal.SIGKILL and len(pids) == 2, run.stderr
+    deadline = time.monotonic() + 30
+    while not all(_ended(pid) for pid in pids) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert all(_ended(pid) for pid in pids)
 
 
 def _compile_here() -> int:
