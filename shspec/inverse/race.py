@@ -28,6 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from ..checks import check_int
 from ..errors import InvalidArgumentError
 
 __all__ = ["ABANDONED", "POLL_SECONDS", "RaceLost", "RaceBound", "RaceBoard", "race_round", "best_success",
@@ -46,8 +47,8 @@ class RaceLost(Exception):
 
 
 def race_round(index: int, width: int) -> int:
-    """The round of start ``index`` in a race of rounds of ``width`` starts."""
-    return index // width
+    """The round of start ``index`` (≥ 0) in a race of rounds of ``width`` (≥ 1) starts."""
+    return check_int(index, "start index", minimum=0) // check_int(width, "race width", minimum=1)
 
 
 def best_success(finished: list, index: int, width: int) -> tuple[float, int] | None:

@@ -58,3 +58,11 @@ def test_a_closed_round_stops_its_starts_at_once():
 def test_a_board_refuses_a_negative_round():
     with RaceBoard() as board, pytest.raises(InvalidArgumentError, match="race round"):
         board.path(-1)
+
+
+def test_a_race_needs_rounds_of_at_least_one_start():
+    from shspec.inverse.race import race_round
+
+    assert race_round(5, 2) == 2
+    with pytest.raises(InvalidArgumentError, match="race width"):
+        race_round(3, 0)
