@@ -16,7 +16,7 @@ and the starts of ``shspec fit``), so that a caller writes the loop once against
   does not answer after :data:`CONNECT_TIMEOUT` seconds, both with a :class:`~shspec.errors.SchedulerError`.
 
 Jobs must be picklable: module-level functions with picklable arguments and results.  :func:`stop_executor` shuts an
-executor down without waiting for the jobs still running (a fit that stopped at its first success no longer needs
+executor down without waiting for the jobs still running (a fit that stopped at a success no longer needs
 them); :func:`usable_cores` is the default size of a local pool.
 
 Interrupts: Ctrl-C reaches every process of the terminal's group, so the workers of a :class:`WorkerPool` ignore it

@@ -42,7 +42,7 @@ CHECKPOINT_FORMAT = 3
 TARGET_RTOL = 1e-12
 
 #: Options that do not change the computation of a start, left out of the fingerprint (a checkpoint can be
-#: continued with more starts, or with every start after a fit that stopped at its first success; its finished
+#: continued with more starts, or with every start after a fit that stopped at a success; its finished
 #: starts ran to their end, whatever the race).
 _IGNORED = ("checkpoint_every", "checkpoint_path", "progress", "starts", "stop_at_success", "race")
 
