@@ -39,7 +39,6 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
     try:
         return _run(problem, progress, checkpoint, t0)
     except RaceLost as lost:
-        progress.status = ABANDONED
         progress.say(problem.options, f"  start {progress.index} abandoned: {lost}")
         return progress.result(ABANDONED, time.perf_counter() - t0, False)
     finally:
