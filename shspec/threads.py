@@ -22,7 +22,8 @@
   into a fixed number of chunks (:data:`REDUCTION_CHUNKS`) whatever numba's thread count.  Processes are the way
   to use more cores (``shspec fit`` runs its starts in a pool).  :func:`set_reproducible` (False) lets BLAS use its
   threads again, for the speed of one large solve on many cores (1.4x at Lb = 49 on two cores), at the price of
-  results that depend on the thread count.
+  results that depend on the thread count.  Nor does shspec call pyshtools' GLQ transforms, whose FFTW plans are
+  chosen by timing them (:mod:`shspec.sphere.grid`).
 """
 
 from __future__ import annotations

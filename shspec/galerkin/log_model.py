@@ -48,10 +48,9 @@ from .model import (HarmonicModel, SpectrumResult, block_moves, laplacian_regula
 
 __all__ = ["LogHarmonicModel", "LogSpectrumResult", "log_expansion"]
 
-#: The largest |log rho| on the grid that is evaluated; a trial point of the optimizer beyond it is rejected.  Not
-#: exp's overflow (709): pyshtools' GLQ analysis (SHExpandGLQ, 4.14) of the mass returns NaN for grid values
-#: from about 1e30 = e^69 (measured: a single node at e^70 fails at Lb = 3, e^75 at Lb = 12), and a Levenberg-
-#: Marquardt step on a near-singular Jacobian proposes such points (log rho 83 on a star target's fit).
+#: The largest |log rho| on the grid that is evaluated; a trial point of the optimizer beyond it is rejected.  A
+#: Levenberg-Marquardt step on a near-singular Jacobian proposes such points (log rho 83 on a star target's fit),
+#: and a mass whose ρ spans e^±60 is far beyond what double precision resolves.
 _MAX_LOG = 60.0
 
 
@@ -129,8 +128,8 @@ class LogHarmonicModel(SpectralModel):
         values = evaluate_on_grid(self._u(params), self.grid)
         top = float(np.max(np.abs(values)))
         if not top <= _MAX_LOG:
-            raise NotPositiveError(f"log rho reaches {top:.3g} in magnitude: exp of it leaves the range the grid "
-                                   f"analysis of the mass can expand (|log rho| <= {_MAX_LOG:g})")
+            raise NotPositiveError(f"log rho reaches {top:.3g} in magnitude: a mass of that range is beyond double "
+                                   f"precision (|log rho| <= {_MAX_LOG:g})")
         return np.exp(values)
 
     def mass_coefficients(self, params) -> np.ndarray:

@@ -3,6 +3,14 @@
 A GLQ grid of degree L has L+1 latitudes (the zeros of P_{L+1}) and 2L+1 equally spaced longitudes; it integrates
 products up to total degree 2L+1 in latitude exactly, so projecting a function onto degree <= Lc is exact when the
 function itself has degree <= 2L+1 − Lc.
+
+The transforms are pyshtools' orthonormal Legendre functions (``PlmON``, tabulated once per grid) and products with
+the longitudes' cosines and sines, not pyshtools' ``MakeGridGLQ``/``SHExpandGLQ``: those plan their FFTs with
+FFTW_MEASURE, which times candidate algorithms and keeps the fastest, so their rounding depended on the machine's
+load (measured: the same expansion at L = 47 came out in other bits in 2 of 10 processes started next to a busy
+core), and through the log-ρ model's mass, a fit's path did too.  Products of fixed shapes add in a fixed order on
+the one BLAS thread shspec computes with (:mod:`shspec.threads`); they agree with pyshtools' transforms to rounding
+(tests) and cost a millisecond at the grids of a fit.
 """
 
 from __future__ import annotations
@@ -13,6 +21,7 @@ from functools import lru_cache
 import numpy as np
 import pyshtools
 
+from ..errors import InvalidArgumentError
 from ..threads import PYSHTOOLS_LOCK
 from .harmonics import check_degree, lmax_of_size, vector_to_cilm, cilm_to_vector
 
@@ -68,23 +77,56 @@ def glq_grid(lmax: int) -> GLQGrid:
     return GLQGrid(lmax, colat, lonr, weights, zero, w)
 
 
-def evaluate_on_grid(coef: np.ndarray, grid: GLQGrid) -> np.ndarray:
-    """Values (L+1, 2L+1) of the function with flat coefficients ``coef`` on ``grid``."""
-    lc = lmax_of_size(np.size(coef))
-    cilm = vector_to_cilm(coef)
-    if lc < grid.lmax:
-        padded = np.zeros((2, grid.lmax + 1, grid.lmax + 1))
-        padded[:, : lc + 1, : lc + 1] = cilm
-        cilm = padded
+@lru_cache(maxsize=32)
+def _legendre(grid_lmax: int, lmax: int) -> np.ndarray:
+    """Orthonormal Legendre functions P_lm (csphase 1) at the nodes of the grid of degree ``grid_lmax``, as an
+    (lmax+1, L+1, lmax+1) array indexed [m, node, l], zero for l < m (cached, read-only)."""
+    grid = glq_grid(grid_lmax)
     with PYSHTOOLS_LOCK:
-        return pyshtools.expand.MakeGridGLQ(cilm, grid.zero, lmax=grid.lmax, norm=4, csphase=1,
-                                            lmax_calc=min(lc, grid.lmax))
+        packed = np.stack([pyshtools.legendre.PlmON(lmax, z, csphase=1) for z in grid.zero])  # (nodes, nplm)
+    l, m = np.tril_indices(lmax + 1)
+    table = np.zeros((lmax + 1, grid.zero.size, lmax + 1))
+    table[m, :, l] = packed[:, l * (l + 1) // 2 + m].T
+    table.setflags(write=False)
+    return table
+
+
+@lru_cache(maxsize=32)
+def _trig(grid_lmax: int, lmax: int) -> tuple[np.ndarray, np.ndarray]:
+    """cos mφ_j and sin mφ_j, m = 0 … lmax, at the grid's longitudes: two (lmax+1, 2L+1) arrays (cached)."""
+    mphi = np.outer(np.arange(lmax + 1), glq_grid(grid_lmax).lon)
+    cos, sin = np.cos(mphi), np.sin(mphi)
+    cos.setflags(write=False)
+    sin.setflags(write=False)
+    return cos, sin
+
+
+def evaluate_on_grid(coef: np.ndarray, grid: GLQGrid) -> np.ndarray:
+    """Values (L+1, 2L+1) of the function with flat coefficients ``coef`` on ``grid`` (its degrees above the
+    grid's are left out)."""
+    lc = min(lmax_of_size(np.size(coef)), grid.lmax)
+    cilm = vector_to_cilm(coef)[:, : lc + 1, : lc + 1]
+    legendre = _legendre(grid.lmax, lc)
+    cos, sin = _trig(grid.lmax, lc)
+    # per order m, the sums over l at every node: (m, nodes)
+    a = np.matmul(legendre, cilm[0].T[:, :, None])[:, :, 0]
+    b = np.matmul(legendre, cilm[1].T[:, :, None])[:, :, 0]
+    return a.T @ cos + b.T @ sin
 
 
 def expand_grid(values: np.ndarray, grid: GLQGrid, lmax: int) -> np.ndarray:
     """Flat coefficients up to degree ``lmax`` (<= grid degree) of grid values (L+1, 2L+1), by quadrature."""
     lmax = check_degree(lmax, "lmax", maximum=grid.lmax)
-    with PYSHTOOLS_LOCK:
-        cilm = pyshtools.expand.SHExpandGLQ(np.asarray(values, dtype=float), grid.w, grid.zero, norm=4, csphase=1,
-                                            lmax_calc=lmax)
+    values = np.asarray(values, dtype=float)
+    if values.shape != grid.shape:
+        raise InvalidArgumentError(f"grid values must have the grid's shape {grid.shape}, got {values.shape}")
+    legendre = _legendre(grid.lmax, lmax)
+    cos, sin = _trig(grid.lmax, lmax)
+    # the longitude sums with their weight 2π/nlon, then the Gauss weight of each node: (nodes, m)
+    weight = grid.w[:, None] * (2.0 * np.pi / grid.lon.size)
+    gc, gs = (values @ cos.T) * weight, (values @ sin.T) * weight
+    cilm = np.empty((2, lmax + 1, lmax + 1))
+    cilm[0] = np.matmul(legendre.transpose(0, 2, 1), gc.T[:, :, None])[:, :, 0].T
+    cilm[1] = np.matmul(legendre.transpose(0, 2, 1), gs.T[:, :, None])[:, :, 0].T
+    cilm[1, :, 0] = 0.0
     return cilm_to_vector(cilm, lmax)

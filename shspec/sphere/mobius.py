@@ -17,12 +17,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pyshtools
 
 from ..errors import ConvergenceError, InvalidArgumentError, NotPositiveError
-from ..threads import PYSHTOOLS_LOCK
 from .evaluate import sample_harmonic
-from .harmonics import as_coefficients, check_degree, cilm_to_vector, lmax_of_size
+from .grid import expand_grid, glq_grid
+from .harmonics import as_coefficients, check_degree, lmax_of_size
 
 __all__ = ["mobius_translate", "mobius_scale", "newton_step", "center_harmonic", "HarmonicCentering"]
 
@@ -97,8 +96,8 @@ def center_harmonic(coeffs, lmax: int | None = None, *, grid_lmax: int | None = 
     The centred factor is ρ' = (ρ∘ψ)|dψ|² with ψ a Möbius map of the sphere; its area measure ρ' dΩ is the
     push-forward of ρ dΩ by ψ⁻¹, so that ∫ x ρ' dΩ = 0, i.e. a'_1m = 0.  ψ is a composition of translations
     φ_{−c} found by Newton steps on the centre of mass (module notes); ρ' is evaluated exactly at the nodes of a
-    Gauss–Legendre grid (the original ρ at the moved points, :func:`~shspec.sphere.evaluate.sample_harmonic`) and expanded back with
-    ``pyshtools.expand.SHExpandGLQ``.
+    Gauss–Legendre grid (the original ρ at the moved points, :func:`~shspec.sphere.evaluate.sample_harmonic`) and
+    expanded back (:func:`~shspec.sphere.grid.expand_grid`).
 
     Parameters
     ----------
@@ -129,13 +128,9 @@ def center_harmonic(coeffs, lmax: int | None = None, *, grid_lmax: int | None = 
     grid_lmax = max(4 * lmax, 32) if grid_lmax is None else check_degree(grid_lmax, "grid_lmax")
     if grid_lmax < lmax:
         raise InvalidArgumentError(f"grid_lmax = {grid_lmax} must be >= lmax = {lmax}")
-    with PYSHTOOLS_LOCK:
-        zero, w = pyshtools.expand.SHGLQ(grid_lmax)
-        lat, lon = pyshtools.expand.GLQGridCoord(grid_lmax)
-    lat_g, lon_g = np.meshgrid(np.radians(lat), np.radians(lon), indexing="ij")
-    x = np.stack([np.cos(lat_g) * np.cos(lon_g), np.cos(lat_g) * np.sin(lon_g), np.sin(lat_g)], -1).reshape(-1, 3)
-    quad = (w[:, None] * np.full(lon.size, 2 * np.pi / lon.size)[None, :]).ravel()
-    rho0 = sample_harmonic(a, x).reshape(lat.size, lon.size)
+    grid = glq_grid(grid_lmax)
+    x, quad = grid.unit_vectors().reshape(-1, 3), grid.weights.ravel()
+    rho0 = sample_harmonic(a, x).reshape(grid.shape)
     if np.any(rho0 <= 0):
         raise NotPositiveError(f"ρ is not positive on the sphere (min {rho0.min():.3g} on a degree-{grid_lmax} grid)")
     # ψ = φ_{−c_1} ∘ ... ∘ φ_{−c_j}, kept as the list of c's and evaluated afresh at the grid nodes each step, so
@@ -156,10 +151,7 @@ def center_harmonic(coeffs, lmax: int | None = None, *, grid_lmax: int | None = 
     else:
         raise ConvergenceError(f"harmonic Möbius centering: |centre| = {np.linalg.norm(center):.3g} > {tol:g} "
                                f"after {max_iter} Newton steps")
-    grid = rho.reshape(lat.size, lon.size)
-    with PYSHTOOLS_LOCK:
-        full = pyshtools.expand.SHExpandGLQ(grid, w, zero, norm=4, csphase=1, lmax_calc=grid_lmax)
-    vec_full = cilm_to_vector(full)
+    vec_full = expand_grid(rho.reshape(grid.shape), grid, grid_lmax)
     out = vec_full[: (lmax + 1) ** 2].copy()
     truncation = float(np.linalg.norm(vec_full[out.size:]) / np.linalg.norm(vec_full))
     residual = float(np.max(np.abs(out[1:4])) / out[0])

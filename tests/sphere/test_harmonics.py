@@ -79,3 +79,41 @@ def test_grid_expansion_round_trip(rng):
     grid = glq_grid(20)
     a = rng.standard_normal(121)
     np.testing.assert_allclose(expand_grid(evaluate_on_grid(a, grid), grid, 10), a, atol=1e-12)
+
+
+@pytest.mark.parametrize("lmax, lc", [(20, 8), (47, 15), (78, 39)])
+def test_grid_transforms_agree_with_pyshtools(rng, lmax, lc):
+    """The tabulated transforms give pyshtools' MakeGridGLQ and SHExpandGLQ to rounding, on a grid finer than the
+    coefficients and for a function (exp) that is not band-limited."""
+    grid = glq_grid(lmax)
+    a = rng.standard_normal((lc + 1) ** 2)
+    cilm = np.zeros((2, lmax + 1, lmax + 1))
+    cilm[:, : lc + 1, : lc + 1] = vector_to_cilm(a)
+    values = evaluate_on_grid(a, grid)
+    ref = pyshtools.expand.MakeGridGLQ(cilm, grid.zero, lmax=lmax, norm=4, csphase=1, lmax_calc=lc)
+    assert np.max(np.abs(values - ref)) <= 1e-13 * np.max(np.abs(ref))
+    f = np.exp(0.1 * values)
+    ref = cilm_to_vector(pyshtools.expand.SHExpandGLQ(f, grid.w, grid.zero, norm=4, csphase=1, lmax_calc=lmax))
+    assert np.max(np.abs(expand_grid(f, grid, lmax) - ref)) <= 1e-13 * np.max(np.abs(ref))
+
+
+def test_no_transform_plans_its_ffts_by_timing(monkeypatch, rng):
+    """pyshtools' GLQ transforms plan FFTW by measuring (FFTW_MEASURE), so their bits depend on the load: the
+    grids, the log-ρ model's mass and the Möbius centring must not use them."""
+    from shspec.galerkin.log_model import LogHarmonicModel
+    from shspec.sphere.mobius import center_harmonic
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("an FFTW-planned pyshtools transform was called")
+
+    monkeypatch.setattr(pyshtools.expand, "MakeGridGLQ", refuse)
+    monkeypatch.setattr(pyshtools.expand, "SHExpandGLQ", refuse)
+    grid = glq_grid(16)
+    a = rng.standard_normal(49) * 0.05
+    expand_grid(evaluate_on_grid(a, grid), grid, 6)
+    u = np.zeros(16)
+    u[4:] = a[4:16]
+    LogHarmonicModel(8, 3).eigenvalues(u, 10)
+    rho = np.zeros(16)
+    rho[0], rho[1:] = np.sqrt(4 * np.pi), 0.1 * a[1:16]
+    center_harmonic(rho)
