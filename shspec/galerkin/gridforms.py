@@ -18,13 +18,11 @@ vector (both measured: :doc:`/benchmarks`; :meth:`HarmonicModel.jacobian` picks 
 from __future__ import annotations
 
 import numpy as np
-import pyshtools
 
 from ..checks import check_int
 from ..errors import InvalidArgumentError
-from ..sphere.grid import glq_grid
+from ..sphere.grid import glq_grid, legendre_at_nodes
 from ..sphere.harmonics import check_degree, ncoeffs
-from ..threads import PYSHTOOLS_LOCK
 
 __all__ = ["GridQuadraticForms"]
 
@@ -50,8 +48,7 @@ class GridQuadraticForms:
         grid = glq_grid(exact if grid_degree is None else check_degree(grid_degree, "grid_degree", minimum=exact))
         self.grid = grid
         lp = max(self.lmax, self.lmax_factor)
-        with PYSHTOOLS_LOCK:
-            plm = np.stack([pyshtools.legendre.PlmON(lp, z, csphase=1) for z in grid.zero])  # (nlat, nplm)
+        plm = legendre_at_nodes(grid, lp)  # (nlat, nplm)
         lon = grid.lon
         self._basis = [self._order_block(plm, self.lmax, m) for m in range(-self.lmax, self.lmax + 1)]
         self._trig_basis = np.stack([_trig(m, lon) for m in range(-self.lmax, self.lmax + 1)])  # (2Lb+1, nlon)

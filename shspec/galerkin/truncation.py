@@ -38,13 +38,11 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-import pyshtools
 
 from ..checks import check_int, finite_array, real_array
 from ..errors import InvalidArgumentError
-from ..sphere.grid import evaluate_on_grid, glq_grid
+from ..sphere.grid import evaluate_on_grid, glq_grid, legendre_at_nodes
 from ..sphere.harmonics import degrees, lmax_of_size, ncoeffs
-from ..threads import PYSHTOOLS_LOCK
 from .gridforms import _trig
 
 __all__ = ["TruncationEstimate", "tail_bound", "factor_truncation", "basis_truncation", "basis_degree_for",
@@ -241,8 +239,7 @@ class _OuterProjection:
         top = lmax + _OUTER_DEGREES
         # the integrand Y_l' ρ f has degree <= Lb + 2 + La + Lb
         self.grid = grid = glq_grid(-(-(2 * lmax + _OUTER_DEGREES + lmax_factor) // 2))
-        with PYSHTOOLS_LOCK:
-            plm = np.stack([pyshtools.legendre.PlmON(top, z, csphase=1) for z in grid.zero])  # (nlat, nplm)
+        plm = legendre_at_nodes(grid, top)  # (nlat, nplm)
         low = lmax + 1 - lmax_factor
         blocks = [_order_block(plm, m, max(abs(m), low), lmax) for m in range(-lmax, lmax + 1)]
         # the rows of f that reach Lb + 1, gathered once per call order by order: each order's rows are then one

@@ -25,7 +25,7 @@ from ..errors import InvalidArgumentError
 from ..threads import PYSHTOOLS_LOCK
 from .harmonics import check_degree, lmax_of_size, vector_to_cilm, cilm_to_vector
 
-__all__ = ["GLQGrid", "glq_grid", "evaluate_on_grid", "expand_grid"]
+__all__ = ["GLQGrid", "glq_grid", "legendre_at_nodes", "evaluate_on_grid", "expand_grid"]
 
 
 @dataclass(frozen=True)
@@ -77,13 +77,20 @@ def glq_grid(lmax: int) -> GLQGrid:
     return GLQGrid(lmax, colat, lonr, weights, zero, w)
 
 
+def legendre_at_nodes(grid: GLQGrid, lmax: int) -> np.ndarray:
+    """Orthonormal Legendre functions P_lm (``PlmON``, csphase 1) at the latitudes of ``grid``, as an
+    (L+1, (lmax+1)(lmax+2)/2) array in pyshtools' packed order l(l+1)/2 + m."""
+    lmax = check_degree(lmax, "lmax")
+    with PYSHTOOLS_LOCK:
+        return np.stack([pyshtools.legendre.PlmON(lmax, z, csphase=1) for z in grid.zero])
+
+
 @lru_cache(maxsize=32)
 def _legendre(grid_lmax: int, lmax: int) -> np.ndarray:
-    """Orthonormal Legendre functions P_lm (csphase 1) at the nodes of the grid of degree ``grid_lmax``, as an
-    (lmax+1, L+1, lmax+1) array indexed [m, node, l], zero for l < m (cached, read-only)."""
+    """:func:`legendre_at_nodes` of the grid of degree ``grid_lmax`` as an (lmax+1, L+1, lmax+1) array indexed
+    [m, node, l], zero for l < m (cached, read-only)."""
     grid = glq_grid(grid_lmax)
-    with PYSHTOOLS_LOCK:
-        packed = np.stack([pyshtools.legendre.PlmON(lmax, z, csphase=1) for z in grid.zero])  # (nodes, nplm)
+    packed = legendre_at_nodes(grid, lmax)
     l, m = np.tril_indices(lmax + 1)
     table = np.zeros((lmax + 1, grid.zero.size, lmax + 1))
     table[m, :, l] = packed[:, l * (l + 1) // 2 + m].T
@@ -92,7 +99,7 @@ def _legendre(grid_lmax: int, lmax: int) -> np.ndarray:
 
 
 @lru_cache(maxsize=32)
-def _trig(grid_lmax: int, lmax: int) -> tuple[np.ndarray, np.ndarray]:
+def _cos_sin(grid_lmax: int, lmax: int) -> tuple[np.ndarray, np.ndarray]:
     """cos mφ_j and sin mφ_j, m = 0 … lmax, at the grid's longitudes: two (lmax+1, 2L+1) arrays (cached)."""
     mphi = np.outer(np.arange(lmax + 1), glq_grid(grid_lmax).lon)
     cos, sin = np.cos(mphi), np.sin(mphi)
@@ -107,7 +114,7 @@ def evaluate_on_grid(coef: np.ndarray, grid: GLQGrid) -> np.ndarray:
     lc = min(lmax_of_size(np.size(coef)), grid.lmax)
     cilm = vector_to_cilm(coef)[:, : lc + 1, : lc + 1]
     legendre = _legendre(grid.lmax, lc)
-    cos, sin = _trig(grid.lmax, lc)
+    cos, sin = _cos_sin(grid.lmax, lc)
     # per order m, the sums over l at every node: (m, nodes)
     a = np.matmul(legendre, cilm[0].T[:, :, None])[:, :, 0]
     b = np.matmul(legendre, cilm[1].T[:, :, None])[:, :, 0]
@@ -121,12 +128,11 @@ def expand_grid(values: np.ndarray, grid: GLQGrid, lmax: int) -> np.ndarray:
     if values.shape != grid.shape:
         raise InvalidArgumentError(f"grid values must have the grid's shape {grid.shape}, got {values.shape}")
     legendre = _legendre(grid.lmax, lmax)
-    cos, sin = _trig(grid.lmax, lmax)
+    cos, sin = _cos_sin(grid.lmax, lmax)
     # the longitude sums with their weight 2π/nlon, then the Gauss weight of each node: (nodes, m)
     weight = grid.w[:, None] * (2.0 * np.pi / grid.lon.size)
     gc, gs = (values @ cos.T) * weight, (values @ sin.T) * weight
     cilm = np.empty((2, lmax + 1, lmax + 1))
     cilm[0] = np.matmul(legendre.transpose(0, 2, 1), gc.T[:, :, None])[:, :, 0].T
     cilm[1] = np.matmul(legendre.transpose(0, 2, 1), gs.T[:, :, None])[:, :, 0].T
-    cilm[1, :, 0] = 0.0
     return cilm_to_vector(cilm, lmax)
