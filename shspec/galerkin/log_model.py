@@ -41,7 +41,6 @@ from ..sphere.harmonics import check_degree, degrees, ncoeffs
 from ..sphere.random import random_coefficients
 from ..sphere.rotate import power_spectrum
 from ..threads import reproducible_call
-from .eigen import solve_cost
 from .gridforms import GridQuadraticForms
 from .model import (HarmonicModel, SpectrumResult, block_moves, laplacian_regularizer, rotation_generators,
                     smallest_agreeing_basis)
@@ -233,9 +232,7 @@ class LogHarmonicModel(SpectralModel):
             self._restricted[(la, lb)] = LogHarmonicModel(lb, la, table=self.mass.table)
         return self._restricted[(la, lb)]
 
-    def solve_cost(self, k: int) -> float:
-        """:func:`~shspec.galerkin.eigen.solve_cost` of the basis: the dense solve dominates, whatever ``k``."""
-        return solve_cost(ncoeffs(self.lmax))
+    solve_cost = HarmonicModel.solve_cost
 
     def stage_basis(self, level: int | None, numeig: int, tol: float) -> int | None:
         """As :meth:`HarmonicModel.stage_basis <shspec.galerkin.model.HarmonicModel.stage_basis>`, for exp(u)."""

@@ -29,7 +29,7 @@ from .driver import run_start
 from .options import FitOptions
 from .problem import FitProblem, StartProgress
 from .progress import FitDisplay
-from .race import ABANDONED, RaceBoard, RaceBound, best_success, race_outcome, race_round
+from .race import ABANDONED, RaceBoard, RaceBound, best_success, race_outcome, race_round, won_round
 from .results import FitResult, StartResult
 from ..targets import Target
 from ..threads import reproducible_call
@@ -60,11 +60,6 @@ def distinct_solutions(starts: list, model: SpectralModel, tol: float) -> list:
         if not same:
             reps.append(i)
     return reps
-
-
-def _won_round(finished: list, width: int) -> float:
-    """The lowest race round (of ``width`` starts) with a successful start among ``finished``, or inf."""
-    return min((race_round(r.index, width) for r in finished if r.success), default=math.inf)
 
 
 #: Seconds an interrupted fit waits for the running starts of its process pool to send back their best states.
@@ -102,7 +97,7 @@ def _run_parallel(problem: FitProblem, pending: list, executor: Executor, finish
     cancelled and the running ones no longer waited for; the starts of earlier rounds are, one of them may succeed
     too.  Returns True if Ctrl-C stopped it (the running starts are cancelled where the executor can)."""
     stop, width = problem.options.stop_at_success, problem.options.race
-    won = _won_round(finished, width)
+    won = won_round(finished, width)
     futures = {}
     with RaceBoard() as board:
         for i in pending:
@@ -297,7 +292,7 @@ def _run_starts(problem: FitProblem, executor, finished: list, current, done: se
         save_checkpoint(options.checkpoint_path, fp, finished, progress, target.eigenvalues)
 
     def stopped(i: int) -> bool:  # a start of a round before i's succeeded, and the fit stops there
-        return options.stop_at_success and _won_round(finished, options.race) < race_round(i, options.race)
+        return options.stop_at_success and won_round(finished, options.race) < race_round(i, options.race)
 
     interrupted = False
     if executor is not None:

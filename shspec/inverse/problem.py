@@ -101,8 +101,7 @@ class FitProblem:
             model.restrict(st.lmax_factor)  # raises for a level the model does not have
         if options.area == "fixed" and target.area is None and target.numeig < 4:
             raise InvalidArgumentError("a fixed area needs a known area or a spectrum to estimate it from")
-        self.fit_area = fits_area(options, target)
-        self.area = target.area_estimate()
+        self._set_target(target)
         # chosen here, once, at a reference: a start's path may then not depend on where the fit runs
         tol = options.stage_basis_tol
         last = self.stages[-1]
@@ -134,8 +133,11 @@ class FitProblem:
         if not isinstance(target, Target) or target.numeig != self.target.numeig:
             raise InvalidArgumentError(f"the target must be a Target of {self.target.numeig} eigenvalues")
         new = copy.copy(self)
-        new.target, new.fit_area, new.area = target, fits_area(self.options, target), target.area_estimate()
+        new._set_target(target)
         return new
+
+    def _set_target(self, target: Target) -> None:
+        self.target, self.fit_area, self.area = target, fits_area(self.options, target), target.area_estimate()
 
     def level(self, s: int) -> int | None:
         """The level (harmonic models: the factor's degree) of stage s, None for the model's own."""

@@ -31,8 +31,8 @@ from pathlib import Path
 from ..checks import check_int
 from ..errors import InvalidArgumentError
 
-__all__ = ["ABANDONED", "POLL_SECONDS", "RaceLost", "RaceBound", "RaceBoard", "race_round", "best_success",
-           "race_outcome"]
+__all__ = ["ABANDONED", "POLL_SECONDS", "RaceLost", "RaceBound", "RaceBoard", "race_round", "won_round",
+           "best_success", "race_outcome"]
 
 #: Status of a start abandoned by the race.
 ABANDONED = "abandoned"
@@ -51,6 +51,12 @@ def race_round(index: int, width: int) -> int:
     return check_int(index, "start index", minimum=0) // check_int(width, "race width", minimum=1)
 
 
+def won_round(finished: list, width: int) -> float:
+    """The lowest race round (of ``width`` starts) with a successful start among ``finished``
+    (:class:`~shspec.inverse.results.StartResult`), or inf."""
+    return min((race_round(r.index, width) for r in finished if r.success), default=math.inf)
+
+
 def best_success(finished: list, index: int, width: int) -> tuple[float, int] | None:
     """(work, index) of the best success among ``finished`` (:class:`~shspec.inverse.results.StartResult`) in the
     round of start ``index``, or None."""
@@ -64,10 +70,10 @@ def race_outcome(finished: list, width: int) -> list:
     first round with a success (all failed), and of that round its best success and the starts that ended, failed,
     with less work (work, then index); with no success, every start.  Abandoned starts are never reported.  The same
     list, by index, whatever order the starts ended in and wherever they were stopped."""
-    wins = [(race_round(r.index, width), r.work, r.index) for r in finished if r.success]
-    rnd, work, index = min(wins, default=(math.inf, math.inf, math.inf))
+    rnd = won_round(finished, width)
+    best = None if rnd == math.inf else best_success(finished, rnd * width, width)
     kept = [r for r in finished if r.status != ABANDONED and (race_round(r.index, width) < rnd or (
-        race_round(r.index, width) == rnd and (r.work, r.index) <= (work, index)))]
+        race_round(r.index, width) == rnd and (r.work, r.index) <= best))]
     return sorted(kept, key=lambda r: r.index)
 
 
