@@ -116,7 +116,13 @@ class SpectralModel(ABC):
 
     @abstractmethod
     def describe(self) -> str:
-        """A short, stable description ("harmonic Lb=30 La=15"): printed, and part of a checkpoint's fingerprint."""
+        """A short, stable description ("harmonic Lb=30 La=15"), printed."""
+
+    def identity(self) -> str:
+        """Everything of the model that changes a fit's arithmetic, as a stable string (part of a checkpoint's
+        fingerprint, :func:`shspec.inverse.checkpoint.fingerprint`): :meth:`describe` unless a model's description
+        leaves something out (a mesh's vertices, say)."""
+        return self.describe()
 
     @abstractmethod
     def free_parameters(self, fit_area: bool) -> np.ndarray:

@@ -1,15 +1,15 @@
 """HDF5 checkpoints of a running fit, and the result file of a finished one.
 
 A checkpoint holds the finished starts and the running one (its stage, the parameters at the stage's start, the
-optimizer's state after its last completed iteration and the history), plus a fingerprint of the problem (options
-that change the computation, model, number of target eigenvalues) and the target spectrum itself.  Resuming checks
-the fingerprint, compares the target spectrum to round-off (:data:`TARGET_RTOL`; a computed target such as the
-built-in blob may move by a few ulps with the machine or library versions, and that is not another fit) and continues
-the running start from that state, on the checkpoint's own target: the optimizers are deterministic, so the result
-is the one of an uninterrupted run.  Files
-are written atomically (:mod:`shspec.atomic`: a temporary file, fsynced, renamed), so a crash while writing never
-leaves a truncated checkpoint; and every file carries a BLAKE2b checksum of all its datasets and attributes, checked on reading, so a
-damaged file is refused by name instead of silently changing a resumed fit.
+optimizer's state after its last completed iteration and the history), plus what the fit means
+(:func:`fingerprint`: the options that change a start, the model, the starting point given) and the target itself
+(eigenvalues, errors, area).  Resuming refuses another fit and says what differs; it compares the target to round-off
+(:data:`TARGET_RTOL`; a computed target such as the built-in blob may move by a few ulps with the machine or library
+versions, and that is not another fit) and continues the running start from that state, on the checkpoint's own
+target: the optimizers are deterministic, so the result is the one of an uninterrupted run.  Files are written
+atomically (:mod:`shspec.atomic`: a temporary file, fsynced, renamed), so a crash while writing never leaves a
+truncated checkpoint; and every file carries a BLAKE2b checksum of all its datasets and attributes, checked on
+reading, so a damaged file is refused by name instead of silently changing a resumed fit.
 """
 
 from __future__ import annotations
@@ -26,6 +26,8 @@ import scipy
 from .._version import __version__
 from ..atomic import atomic_output
 from ..errors import CheckpointError
+from ..spectral_model import SpectralModel
+from ..targets import Target
 from .options import FitOptions
 from .problem import StartProgress
 from .results import StartResult
@@ -34,11 +36,12 @@ __all__ = ["fingerprint", "save_checkpoint", "load_checkpoint", "describe_checkp
            "save_result", "load_result_summary", "TARGET_RTOL", "CHECKPOINT_FORMAT"]
 
 #: Format version of checkpoints and result files (2: the target spectrum is stored, not hashed; 3: every start
-#: carries its work, :mod:`~shspec.inverse.race`).
-CHECKPOINT_FORMAT = 3
+#: carries its work, :mod:`~shspec.inverse.race`; 4: the fingerprint is stored in words, with the target's errors
+#: and area).
+CHECKPOINT_FORMAT = 4
 
-#: Largest difference between a checkpoint's target spectrum and the resuming fit's, relative to the largest
-#: eigenvalue, that still counts as the same target (round-off of how the target was computed).
+#: Largest difference between a checkpoint's target (eigenvalues, errors, area) and the resuming fit's, relative to
+#: its largest value, that still counts as the same target (round-off of how the target was computed).
 TARGET_RTOL = 1e-12
 
 #: Options that do not change the computation of a start, left out of the fingerprint (a checkpoint can be
@@ -54,15 +57,23 @@ def options_dict(options: FitOptions) -> dict:
     return out
 
 
-def fingerprint(options: FitOptions, target_eigenvalues, model_description: str) -> str:
-    """SHA-256 of what determines a fit's arithmetic: options (bar bookkeeping), model and the number of target
-    eigenvalues.  The eigenvalues themselves are compared by :func:`load_checkpoint` to round-off instead of being
-    hashed: a hash would refuse a target that moved by an ulp."""
-    opts = {k: v for k, v in options_dict(options).items() if k not in _IGNORED}
-    h = hashlib.sha256(json.dumps(opts, sort_keys=True).encode())
-    h.update(f"numeig {np.size(target_eigenvalues)};".encode())
-    h.update(model_description.encode())
-    return h.hexdigest()
+def fingerprint(options: FitOptions, target: Target, model: SpectralModel, init=None) -> dict:
+    """What a fit's results mean, bar the target's values: ``{name: JSON-ready value}`` with the options that change
+    a start (every one but bookkeeping and the number of starts and their race), the model
+    (:meth:`~shspec.spectral_model.SpectralModel.identity`), the size of the target, whether it has errors and a
+    known area, and a hash of the starting point ``init`` (nparams,) if one was given.
+
+    The target's eigenvalues, errors and area are stored beside it and compared by :func:`load_checkpoint` to
+    round-off: a hash would refuse a target that moved by an ulp."""
+    fp = {f"option {k}": v for k, v in options_dict(options).items() if k not in _IGNORED}
+    fp["model"] = model.identity()
+    fp["target eigenvalues"] = int(target.numeig)
+    fp["target errors"] = "given" if target.errors is not None else "none (exact)"
+    fp["target area"] = "known" if target.area is not None else "estimated"
+    fp["starting point"] = ("none" if init is None else "given, sha256 "
+                            + hashlib.sha256(np.ascontiguousarray(init, dtype=float).tobytes()).hexdigest()[:16])
+    # through JSON, as it is stored: tuples become lists, and a fingerprint compares equal to its stored copy
+    return json.loads(json.dumps(fp, sort_keys=True))
 
 
 def _write_start(group: h5py.Group, r: StartResult) -> None:
@@ -136,13 +147,17 @@ def _open_checked(path, what: str) -> h5py.File:
     return f
 
 
-def save_checkpoint(path, fp: str, finished: list, progress, target_eigenvalues) -> None:
-    """Write a checkpoint: the fingerprint, the target spectrum, the finished starts and the running start's progress
-    (or None)."""
+def save_checkpoint(path, fp: dict, finished: list, progress, target: Target) -> None:
+    """Write a checkpoint: the fingerprint (:func:`fingerprint`), the target (eigenvalues, errors, area), the
+    finished starts and the running start's progress (or None)."""
     def write(f):
         f.attrs["format"] = CHECKPOINT_FORMAT
-        f.attrs["fingerprint"] = fp
-        f.create_dataset("target", data=np.asarray(target_eigenvalues, dtype=float))
+        f.attrs["fingerprint"] = json.dumps(fp, sort_keys=True)
+        f.create_dataset("target", data=np.asarray(target.eigenvalues, dtype=float))
+        if target.errors is not None:
+            f.create_dataset("target_errors", data=np.asarray(target.errors, dtype=float))
+        if target.area is not None:
+            f.attrs["target_area"] = float(target.area)
         g = f.create_group("finished")
         for r in finished:
             _write_start(g.create_group(str(r.index)), r)
@@ -161,27 +176,32 @@ def save_checkpoint(path, fp: str, finished: list, progress, target_eigenvalues)
     _atomic(Path(path), write)
 
 
-def load_checkpoint(path, fp: str, target_eigenvalues):
+def load_checkpoint(path, fp: dict, target: Target):
     """Read a checkpoint written by :func:`save_checkpoint`: (finished starts, running progress or None, the target
-    eigenvalues the checkpointed fit ran on — equal to ``target_eigenvalues`` to round-off, and what a resumed fit
-    goes on with, so that it ends as the uninterrupted one would have).
+    the checkpointed fit ran on — ``target`` with the checkpoint's eigenvalues, errors and area, equal to its own to
+    round-off, and what a resumed fit goes on with, so that it ends as the uninterrupted one would have).
 
     Raises
     ------
     CheckpointError
-        If the file is unreadable, of another format, or of another problem (fingerprint mismatch, or a target
-        spectrum that differs by more than :data:`TARGET_RTOL` relative to its largest eigenvalue).
+        If the file is unreadable, of another format, or of another fit: another fingerprint (the message lists
+        what differs, the checkpoint's value and this fit's), or a target whose eigenvalues, errors or area differ
+        by more than :data:`TARGET_RTOL` relative to their largest.
     """
     f = _open_checked(path, "checkpoint")
     try:
         with f:
             if f.attrs.get("format") != CHECKPOINT_FORMAT:
                 raise CheckpointError(f"{path} is not a shspec fit checkpoint of format {CHECKPOINT_FORMAT}")
-            if f.attrs.get("fingerprint") != fp:
-                raise CheckpointError(f"{path} is the checkpoint of another fit (options, model or number of target "
-                                      "eigenvalues differ)")
-            stored = f["target"][()]
-            _check_target(path, stored, np.asarray(target_eigenvalues, dtype=float))
+            differences = _differences(json.loads(f.attrs["fingerprint"]), fp)
+            if differences:
+                raise CheckpointError(f"{path} is the checkpoint of another fit: {'; '.join(differences)} "
+                                      "(checkpoint → this fit); run it as it was to resume it, or start anew")
+            stored = dataclasses.replace(
+                target, eigenvalues=f["target"][()],
+                errors=f["target_errors"][()] if "target_errors" in f else None,
+                area=float(f.attrs["target_area"]) if "target_area" in f.attrs else None)
+            _check_target(path, stored, target)
             finished = sorted((_read_start(g) for g in f["finished"].values()), key=lambda r: r.index)
             progress = None
             if "current" in f:
@@ -201,13 +221,28 @@ def load_checkpoint(path, fp: str, target_eigenvalues):
     return finished, progress, stored
 
 
-def _check_target(path, stored: np.ndarray, target: np.ndarray) -> None:
-    """Refuse a checkpoint whose target spectrum is not the resuming fit's, up to round-off."""
-    scale = max(float(np.max(np.abs(target))), float(np.finfo(float).tiny))
-    worst = float(np.max(np.abs(stored - target))) / scale
-    if not worst <= TARGET_RTOL:  # also refuses NaN
-        raise CheckpointError(f"{path} is the checkpoint of a fit to another target spectrum (largest difference "
-                              f"{worst:.2g} of the largest eigenvalue, more than the round-off {TARGET_RTOL:g})")
+def _differences(stored: dict, fp: dict) -> list[str]:
+    """What differs between a checkpoint's fingerprint and a fit's, in words ("option max_iter 4 → 5")."""
+    out = []
+    for key in sorted(set(stored) | set(fp)):
+        old, new = stored.get(key, "(absent)"), fp.get(key, "(absent)")
+        if old != new:
+            out.append(f"{key} {old!r} → {new!r}")
+    return out
+
+
+def _check_target(path, stored: Target, target: Target) -> None:
+    """Refuse a checkpoint whose target (eigenvalues, errors, area) is not the resuming fit's, up to round-off."""
+    for what, a, b in (("spectrum", stored.eigenvalues, target.eigenvalues),
+                       ("errors", stored.errors, target.errors), ("area", stored.area, target.area)):
+        if a is None or b is None:
+            continue  # whether there are errors and an area is part of the fingerprint
+        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+        scale = max(float(np.max(np.abs(b))), float(np.finfo(float).tiny))
+        worst = float(np.max(np.abs(a - b))) / scale
+        if not worst <= TARGET_RTOL:  # also refuses NaN
+            raise CheckpointError(f"{path} is the checkpoint of a fit to another target {what} (largest difference "
+                                  f"{worst:.2g} of the largest value, more than the round-off {TARGET_RTOL:g})")
 
 
 def describe_checkpoint(path) -> str:

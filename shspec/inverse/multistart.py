@@ -11,8 +11,6 @@ the starts ended in.
 
 from __future__ import annotations
 
-import dataclasses
-import hashlib
 import math
 import time
 from concurrent.futures import FIRST_COMPLETED, Executor, wait
@@ -251,18 +249,16 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     if isinstance(executor, SerialExecutor):
         executor = None  # the same starts, with the checkpoints inside them that only a run here writes
     problem = FitProblem(model, target, options, init=init, executor=executor)
-    fp = fingerprint(options, target.eigenvalues, model.describe()
-                     + ("" if init is None else " init " + hashlib.sha256(problem.init.tobytes()).hexdigest()))
+    fp = fingerprint(options, target, model, problem.init)
     finished: list[StartResult] = []
     current: StartProgress | None = None
     if resume and options.checkpoint_path is not None and Path(options.checkpoint_path).exists():
-        finished, current, stored = load_checkpoint(options.checkpoint_path, fp, target.eigenvalues)
+        finished, current, stored = load_checkpoint(options.checkpoint_path, fp, target)
         # a start the race abandoned runs again: its bound depends on the rounds, and a resumed fit may race in
         # others (FitOptions.race is not part of the fingerprint) or run every start
         finished = [r for r in finished if r.status != ABANDONED]
-        if not np.array_equal(stored, target.eigenvalues):
-            # round-off apart: go on with the checkpoint's own target, as the uninterrupted fit did
-            problem = problem.with_target(dataclasses.replace(target, eigenvalues=stored))
+        # equal to round-off: go on with the checkpoint's own target, as the uninterrupted fit did
+        problem = problem.with_target(stored)
     done = {r.index for r in finished}
     display = FitDisplay(options.starts, len(problem.stages), options.progress, done=len(done))
     try:
@@ -289,7 +285,7 @@ def _run_starts(problem: FitProblem, executor, finished: list, current, done: se
     options, target = problem.options, problem.target
 
     def checkpoint(progress):
-        save_checkpoint(options.checkpoint_path, fp, finished, progress, target.eigenvalues)
+        save_checkpoint(options.checkpoint_path, fp, finished, progress, target)
 
     def stopped(i: int) -> bool:  # a start of a round before i's succeeded, and the fit stops there
         return options.stop_at_success and won_round(finished, options.race) < race_round(i, options.race)
@@ -324,7 +320,7 @@ def _run_starts(problem: FitProblem, executor, finished: list, current, done: se
             except KeyboardInterrupt:
                 interrupted = True
                 if options.checkpoint_path:
-                    save_checkpoint(options.checkpoint_path, fp, finished, current, target.eigenvalues)
+                    save_checkpoint(options.checkpoint_path, fp, finished, current, target)
                 running = current is not None and current.index not in {r.index for r in finished}
                 if running and current.params is not None:
                     finished.append(current.result("interrupted", current.seconds,

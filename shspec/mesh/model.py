@@ -12,6 +12,7 @@ regularizer then smooths s.
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
 import numpy as np
@@ -252,6 +253,13 @@ class MeshModel(SpectralModel):
         return (f"mesh n={self.nparams} area={np.round(self.vertex_areas.sum(), 12)}"
                 + ("" if self.transform == "identity" else f" {self.transform}")
                 + ("" if self.reg_kind == "bilaplacian" else f" reg={self.reg_kind}"))
+
+    def identity(self) -> str:
+        """The description, the degree of the escape moves, the eigensolver's options and a hash of the sphere mesh
+        (its vertices and faces): two meshes of as many vertices and the same area are two fits."""
+        h = hashlib.sha256(np.ascontiguousarray(self.mesh.vertices, dtype=float).tobytes())
+        h.update(np.ascontiguousarray(self.mesh.faces, dtype=np.int64).tobytes())
+        return f"{self.describe()} La={self.lmax_factor} {self.options!r} mesh sha256 {h.hexdigest()[:16]}"
 
     def free_parameters(self, fit_area: bool) -> np.ndarray:
         """Every vertex factor (their sum sets the area, so ``fit_area`` has no separate parameter)."""

@@ -56,7 +56,8 @@ def test_the_checkpoint_message_names_the_running_stage_and_history_rows(tmp_pat
 
     path = tmp_path / "checkpoint.h5"
     progress = StartProgress(index=1, stage=2, base=np.zeros(3), state=None, history=[(0.0, 1.0, 2.0)] * 51)
-    save_checkpoint(path, fingerprint(FitOptions(), np.arange(3.0), "m"), list(tiny_result.starts), progress, np.arange(3.0))
+    save_checkpoint(path, fingerprint(FitOptions(), tiny_result.target, tiny_result.model), list(tiny_result.starts),
+                    progress, tiny_result.target)
     with pytest.raises(CheckpointError, match="start 1 running at stage 2 with 51 history rows"):
         claim_checkpoint(path, resume=False, overwrite=False)
 
@@ -103,7 +104,7 @@ def test_a_full_disk_while_writing_a_figure_keeps_the_old_png(tmp_path, tiny_res
 
 def test_a_failed_hdf5_flush_of_a_checkpoint_is_one_checkpoint_error(tmp_path, tiny_result, monkeypatch):
     path = tmp_path / "checkpoint.h5"
-    save_checkpoint(path, "fp", list(tiny_result.starts), None, np.arange(3.0))
+    save_checkpoint(path, {}, list(tiny_result.starts), None, tiny_result.target)
     old = path.read_bytes()
 
     def flush_failure(self, *args, **kwargs):
@@ -111,7 +112,7 @@ def test_a_failed_hdf5_flush_of_a_checkpoint_is_one_checkpoint_error(tmp_path, t
 
     monkeypatch.setattr(h5py.Group, "create_group", flush_failure)
     with pytest.raises(CheckpointError, match=r"cannot write .*checkpoint\.h5: .*previous checkpoint\.h5 is intact"):
-        save_checkpoint(path, "fp", list(tiny_result.starts), None, np.arange(3.0))
+        save_checkpoint(path, {}, list(tiny_result.starts), None, tiny_result.target)
     assert path.read_bytes() == old
 
 

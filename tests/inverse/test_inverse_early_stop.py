@@ -145,8 +145,8 @@ def test_a_resumed_fit_that_stops_at_its_first_success_equals_the_uninterrupted_
     target, model, opts, serial, every = case
     # a checkpoint of a parallel run in which starts 0, 2 and 3 ended before 1: only 1 is left, and it succeeds
     path = tmp_path / "ck.h5"
-    fp = fingerprint(opts, target.eigenvalues, model.describe())
-    save_checkpoint(path, fp, [every.starts[i] for i in (0, 2, 3)], None, target.eigenvalues)
+    fp = fingerprint(opts, target, model)
+    save_checkpoint(path, fp, [every.starts[i] for i in (0, 2, 3)], None, target)
     checkpointed = replace(opts, checkpoint_path=str(path))
     backwards = OrderedExecutor(1)
     _same(fit(target, model, checkpointed, resume=True, executor=backwards), serial)
@@ -194,7 +194,7 @@ def test_a_start_the_race_abandoned_runs_again_on_resume(case, tmp_path):
     target, model, opts, serial, every = case
     # start 1 abandoned in a race of other rounds: its record says nothing about its own round, so it runs again
     path = tmp_path / "ck.h5"
-    fp = fingerprint(opts, target.eigenvalues, model.describe())
+    fp = fingerprint(opts, target, model)
     lost = replace(every.starts[1], status=ABANDONED, success=False, work=every.starts[1].work / 2)
-    save_checkpoint(path, fp, [lost, every.starts[2]], None, target.eigenvalues)
+    save_checkpoint(path, fp, [lost, every.starts[2]], None, target)
     _same(fit(target, model, replace(opts, checkpoint_path=str(path)), resume=True), serial)
