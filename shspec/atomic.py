@@ -27,6 +27,7 @@ import contextlib
 import errno
 import glob
 import os
+import re
 import signal
 import tempfile
 import threading
@@ -176,7 +177,20 @@ _REASONS = {errno.ENOSPC: "the disk is full (no space left on device)",
             errno.EDQUOT: "the disk quota is exceeded",
             errno.EROFS: "the file system is read-only",
             errno.EACCES: "permission denied",
-            errno.EPERM: "permission denied"}
+            errno.EPERM: "permission denied",
+            errno.EFBIG: "the file would exceed the largest file this process may write (ulimit -f)"}
+
+#: h5py reports a failed write of the HDF5 library as a RuntimeError whose text holds the errno.
+_HDF5_ERRNO = re.compile(r"errno = (\d+)")
+
+
+def _errno(exc: BaseException) -> int | None:
+    """The errno of a failed write: an OSError's own, or the one h5py puts into the text of its RuntimeError."""
+    number = getattr(exc, "errno", None)
+    if number is None and isinstance(exc, RuntimeError):
+        match = _HDF5_ERRNO.search(str(exc))
+        number = int(match.group(1)) if match else None
+    return number
 
 
 def write_failure(path: str | os.PathLike, exc: BaseException, *, existed: bool,
@@ -184,10 +198,12 @@ def write_failure(path: str | os.PathLike, exc: BaseException, *, existed: bool,
     """The error to raise when an atomic write of ``path`` failed with ``exc``: it names the file, the reason in
     words and what is left (the previous file intact, or nothing written).  ``existed`` says whether ``path`` held a
     file before the write."""
-    reason = _REASONS.get(getattr(exc, "errno", None)) or getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+    number = _errno(exc)
+    reason = (_REASONS.get(number) or getattr(exc, "strerror", None) or (os.strerror(number) if number else None)
+              or str(exc) or type(exc).__name__)
     left = f"the previous {Path(path).name} is intact" if existed else "nothing was written"
     out = error(f"cannot write {path}: {reason}; {left}")
-    out.errno = getattr(exc, "errno", None)
+    out.errno = number
     return out
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from .errors import ResourceLimitError
 
-__all__ = ["Need", "available_memory", "free_disk", "load_average", "check_need", "human_bytes"]
+__all__ = ["Need", "available_memory", "free_disk", "file_size_limit", "load_average", "check_need", "human_bytes"]
 
 #: Fraction of the available memory a computation may plan to use (the rest: Python, BLAS workspaces, the OS).
 MEMORY_FRACTION = 0.9
@@ -55,6 +55,17 @@ def free_disk(path: str | os.PathLike) -> int | None:
         return None
 
 
+def file_size_limit() -> int | None:
+    """The largest file this process may write, in bytes (the soft ``RLIMIT_FSIZE``, ``ulimit -f``), or None when
+    there is no limit or the system has none."""
+    try:
+        import resource
+    except ImportError:  # Windows
+        return None
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    return None if soft == resource.RLIM_INFINITY else soft
+
+
 def human_bytes(n: float) -> str:
     """``n`` bytes as '3.2 MiB', '11.7 GiB', ..."""
     for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
@@ -70,7 +81,7 @@ class Need:
 
     what: str
     memory: int
-    disk: int = 0
+    disk: int = 0  # written to one file
 
 
 def _largest_fitting(lmax: int, lmax_factor: int, memory: int, estimate) -> tuple[int, int] | None:
@@ -88,7 +99,8 @@ def _largest_fitting(lmax: int, lmax_factor: int, memory: int, estimate) -> tupl
 
 def check_need(need: Need, *, disk_path: str | os.PathLike | None = None, limits: tuple[int, int] | None = None,
                estimate=None) -> None:
-    """Raise :class:`ResourceLimitError` when ``need`` exceeds the available memory or the free disk at ``disk_path``.
+    """Raise :class:`ResourceLimitError` when ``need`` exceeds the available memory, or the free disk at ``disk_path``
+    or the largest file the process may write (:func:`file_size_limit`).
 
     ``limits`` (Lb, La) and ``estimate`` (a function (Lb, La) -> Need) let the message say which band limits fit.
     """
@@ -106,3 +118,8 @@ def check_need(need: Need, *, disk_path: str | os.PathLike | None = None, limits
         if free is not None and need.disk > free:
             raise ResourceLimitError(f"{need.what} needs {human_bytes(need.disk)} on disk; {disk_path} has "
                                      f"{human_bytes(free)} free")
+        largest = file_size_limit()
+        if largest is not None and need.disk > largest:
+            # a write past the limit fails with EFBIG, which h5py turns into errors at the close of the file
+            raise ResourceLimitError(f"{need.what} needs a file of {human_bytes(need.disk)}; this process may write "
+                                     f"files of at most {human_bytes(largest)} (ulimit -f)")

@@ -49,7 +49,7 @@ import h5py
 import numpy as np
 
 from .._version import __version__
-from ..atomic import atomic_hdf5, temporary_files
+from ..atomic import atomic_hdf5, temporary_files, write_failure
 from ..errors import (BandLimitError, CacheLocationError, CorruptTableError, OutdatedTableError, ShspecWarning,
                       TableMismatchError)
 from ..outputs import ensure_directory
@@ -179,6 +179,7 @@ def _write(table: GauntTable, path: Path, build_seconds: float) -> Path:
     """Write ``table`` to ``path`` atomically; the caller holds the lock."""
     checksum = _checksum(table.values)
     created = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    existed = path.exists()
     try:
         with atomic_hdf5(path) as f:
             f.create_dataset("values", data=table.values)
@@ -187,11 +188,12 @@ def _write(table: GauntTable, path: Path, build_seconds: float) -> Path:
                      "checksum": checksum, "shspec_version": __version__, "created": created,
                      "build_seconds": build_seconds}
             f.attrs.update(attrs)
-    except OSError as exc:
-        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+    except (OSError, RuntimeError) as exc:  # h5py reports a failed flush (a full disk, a file-size limit) as the latter
+        failure = write_failure(path, exc, existed=existed, error=CacheLocationError)
+        if failure.errno in (errno.ENOSPC, errno.EDQUOT):
             raise CacheLocationError(f"no space left in {path.parent} to write {path.name} "
                                      f"({table.values.nbytes / 2**20:.0f} MiB)") from exc
-        raise CacheLocationError(f"cannot write {path}: {exc}") from exc
+        raise failure from exc
     table.path = path
     table.metadata = dict(checksum=checksum, created=created, shspec_version=__version__,
                           build_seconds=build_seconds)
@@ -336,6 +338,11 @@ def list_tables(directory: str | os.PathLike | None = None, *, verify: bool = Fa
             continue
         lb, la = int(match.group(1)), int(match.group(2))
         problem, count, created = None, 0, ""
+        if path.is_symlink() and not path.exists():
+            # no file to read or size: say where it points, which is what the user has to fix (or a build replaces)
+            problem = f"a symbolic link to {os.readlink(path)}, which does not exist"
+            out.append(TableInfo(path, lb, la, count, 0, created, problem))
+            continue
         try:
             with h5py.File(path, "r") as f:
                 count = int(f.attrs.get("count", -1))

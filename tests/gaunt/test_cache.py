@@ -2,6 +2,8 @@
 
 import multiprocessing
 import os
+import subprocess
+import sys
 import warnings
 
 import h5py
@@ -269,3 +271,49 @@ def test_a_checkout_uses_its_cache_folder_from_any_subfolder(tmp_path, monkeypat
     (other / "pyproject.toml").write_text('[project]\nname = "something-else"\n')
     monkeypatch.chdir(other)
     assert cache_dir_source() == (tmp_path / "user" / "shspec", "user cache")
+
+
+def test_a_file_size_limit_is_named_before_the_build(tmp_path):
+    """Issue 50, item 10: ``ulimit -f`` below the table's file made h5py's flush fail with a RuntimeError, a raw
+    traceback from ``shspec precompute`` (and from ``shspec forward`` when it built a table); now the limit is
+    checked with the disk space, before the build."""
+    get_table(8, 8, cache_dir=tmp_path / "warm")  # numba's cache written here, not by the child under its limit
+    limit = table_path(8, 8, tmp_path / "warm").stat().st_size - 1  # above the values alone: the header counts
+    limited = tmp_path / "limited"
+    child = ("import resource, sys\n"
+             f"resource.setrlimit(resource.RLIMIT_FSIZE, ({limit}, {limit}))\n"
+             "from shspec.cli import main\n"
+             f"sys.exit(main(['precompute', '--lmax', '8', '--lmax-factor', '8', '--cache-dir', {str(limited)!r}, "
+             "'--quiet']))\n")
+    run = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 1, run.stderr
+    [line] = run.stderr.strip().splitlines()
+    assert line.startswith("shspec precompute: error: the Gaunt table (8,8) needs a file of ") and "ulimit -f" in line
+    assert sorted(p.name for p in limited.iterdir()) == []
+
+
+def test_a_write_that_h5py_fails_with_a_runtime_error_is_a_cache_error(tmp_path, monkeypatch):
+    """h5py reports a failed write (here EFBIG) as a RuntimeError with the errno in its text."""
+    def fail(*args, **kwargs):
+        raise RuntimeError("Can't decrement id ref count (file write failed: errno = 27, error message = "
+                           "'File too large')")
+
+    monkeypatch.setattr(h5py.File, "create_dataset", fail)
+    with pytest.raises(CacheLocationError, match=r"cannot write .*gaunt_Lb3_La2.h5: the file would exceed the "
+                                                 r"largest file this process may write \(ulimit -f\); nothing"):
+        get_table(3, 2, cache_dir=tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["gaunt_Lb3_La2.h5.lock"]
+
+
+def test_a_dangling_link_in_the_cache_is_listed_as_such_and_replaced_by_a_build(tmp_path):
+    """Issue 50, item 12: a link to nowhere made ``list`` (and every load that scans the cache) raise
+    FileNotFoundError."""
+    link = table_path(4, 4, tmp_path)
+    link.symlink_to(tmp_path / "nonexistent")
+    [info] = list_tables(tmp_path, verify=True)
+    assert info.problem == f"a symbolic link to {tmp_path / 'nonexistent'}, which does not exist"
+    with pytest.raises(FileNotFoundError, match="no cached Gaunt table covers"):
+        load_table(3, 2, tmp_path)
+    table = get_table(4, 4, cache_dir=tmp_path)  # the link points nowhere: the build takes its place
+    assert not link.is_symlink() and table.path == link
+    assert list_tables(tmp_path)[0].problem is None
