@@ -12,8 +12,9 @@ and the starts of ``shspec fit``), so that a caller writes the loop once against
 * ``scheduler=ADDRESS``: the executor of a Dask distributed cluster (``distributed.Client(ADDRESS).get_executor()``;
   ADDRESS like ``tcp://host:8786``, or a ``LocalCluster``'s ``scheduler_address``).  The workers' thread counts are
   the cluster's business (``dask worker --nthreads 1`` and OMP_NUM_THREADS=1 in their environment); shutting the
-  executor down closes the client, not the cluster.  An address where nothing listens fails at once, one that
-  does not answer after :data:`CONNECT_TIMEOUT` seconds, both with a :class:`~shspec.errors.SchedulerError`.
+  executor down closes the client, not the cluster.  An address that cannot be one (an unknown scheme, a port out of
+  range) and a port where nothing listens fail at once, a server that does not answer as a Dask scheduler after
+  :data:`CONNECT_TIMEOUT` seconds, all with a :class:`~shspec.errors.SchedulerError`.
 
 Jobs must be picklable: module-level functions with picklable arguments and results.  :func:`stop_executor` shuts an
 executor down without waiting for the jobs still running (a fit that stopped at a success no longer needs
@@ -181,23 +182,89 @@ def _distributed():
     return distributed
 
 
-def _probe(address: str, timeout: float) -> None:
-    """Fail at once when nothing listens at a TCP scheduler address: distributed retries a refused connection
-    until its timeout, then raises with a traceback of its own."""
-    from distributed.comm import parse_address, parse_host_port
+#: The transports whose location is ``host:port`` (inproc is in-process and has none).
+_HOST_PORT = ("tcp", "tls", "ws", "wss", "ucx")
 
+
+def _check_address(address: str) -> tuple[str, str, int | None]:
+    """The scheme, host and port (None for inproc) of a scheduler address, checked before any connection: an unknown
+    scheme or a port that cannot exist is named as such, not as a server that refuses or does not answer."""
+    from distributed.comm import parse_address, parse_host_port
+    from distributed.comm.registry import backends, get_backend
+
+    scheme, location = parse_address(address)
     try:
-        scheme, location = parse_address(address)
-        if scheme != "tcp":
-            return  # other transports (tls, inproc, ucx) are left to distributed
+        get_backend(scheme)
+    except ValueError:
+        raise SchedulerError(f"{address!r} has the unknown scheme {scheme!r}: Dask schedulers listen at "
+                             f"tcp://host:port (Dask knows {', '.join(sorted(backends))})") from None
+    if scheme not in _HOST_PORT:
+        return scheme, location, None
+    try:
         host, port = parse_host_port(location)
     except (ValueError, TypeError) as exc:
+        raise SchedulerError(f"{address!r} is not a Dask scheduler address ({scheme}://host:port): {exc}") from None
+    if not 0 < port < 65536:
+        raise SchedulerError(f"{address!r} names the port {port}, which cannot exist (ports are 1 to 65535)")
+    if not host:
+        raise SchedulerError(f"{address!r} names no host ({scheme}://host:port)")
+    return scheme, host, port
+
+
+def _handshake(address: str, timeout: float) -> None:
+    """Exchange Dask's handshake with the server at ``address``, within ``timeout`` seconds in all.
+
+    distributed bounds the connection by its timeout but then waits for the server's half of the handshake without
+    limit, so ``Client()`` hung on a server that accepts connections and never speaks.  The exchange runs in a thread
+    of its own, whose event loop cannot clash with one the caller may run (Jupyter's).
+    """
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def exchange():
+        comm = await asyncio.wait_for(connect(address, timeout=timeout), timeout)
+        await comm.close()
+
+    outcome = []
+
+    def run():
+        try:
+            asyncio.run(exchange())
+        except Exception as exc:  # noqa: BLE001 - handed to the caller's thread, which names it
+            outcome.append(exc)
+
+    thread = threading.Thread(target=run, name="shspec-scheduler-handshake", daemon=True)
+    thread.start()
+    thread.join(timeout + 5)  # wait_for has ended the exchange by then; the margin is the event loop's
+    error = outcome[0] if outcome else TimeoutError() if thread.is_alive() else None
+    if isinstance(error, TimeoutError):
+        raise SchedulerError(f"the server at {address} accepts connections but does not answer as a Dask scheduler "
+                             f"within {timeout:g} s") from None
+    if isinstance(error, OSError):  # distributed's CommClosedError is one: the server hung up
+        raise SchedulerError(f"cannot reach the Dask scheduler at {address}: {error}") from None
+    if error is not None:
+        raise SchedulerError(f"the server at {address} does not answer as a Dask scheduler: "
+                             f"{type(error).__name__}: {str(error)[:200]}") from None
+
+
+def _probe(address: str, timeout: float) -> None:
+    """Name what is wrong with ``address`` before distributed's client connects: a malformed address at once
+    (:func:`_check_address`); for TCP, a port where nothing listens at once (distributed retries a refused connection
+    until its timeout, then raises with a traceback of its own), and a server that does not speak Dask within
+    ``timeout`` seconds (:func:`_handshake`)."""
+    try:
+        scheme, host, port = _check_address(address)
+    except (ValueError, TypeError) as exc:
         raise SchedulerError(f"{address!r} is not a Dask scheduler address (tcp://host:port): {exc}") from None
+    if scheme != "tcp":
+        return  # other transports (tls, ws, inproc, ucx) need the client's own connection arguments
     try:
         socket.create_connection((host, port), timeout=timeout).close()
     except OSError as exc:
         reason = "no answer" if isinstance(exc, TimeoutError) else exc.strerror or str(exc)
         raise SchedulerError(f"cannot reach the Dask scheduler at {address}: {reason}") from None
+    _handshake(address, timeout)
 
 
 class DaskExecutor(Executor):

@@ -36,6 +36,38 @@ def test_a_closed_port_fails_at_once_with_its_address(closed_port):
         make_executor(scheduler="tcp://[bad")
 
 
+@pytest.fixture
+def silent_server():
+    """A local TCP server that accepts connections and never speaks; it ends with the test."""
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen(4)
+        yield f"tcp://127.0.0.1:{server.getsockname()[1]}"
+
+
+def test_a_server_that_never_answers_fails_in_bounded_time(silent_server):
+    """Issue 50, item 11: distributed waits for the server's handshake without limit, so this hung for good."""
+    pytest.importorskip("distributed")
+    with pytest.raises(SchedulerError, match=f"the server at {silent_server} accepts connections but does not "
+                                             "answer as a Dask scheduler within 1 s"):
+        make_executor(scheduler=silent_server, connect_timeout=1)
+
+
+@pytest.mark.parametrize("address, words", [
+    ("127.0.0.1:99999", "'127.0.0.1:99999' names the port 99999, which cannot exist (ports are 1 to 65535)"),
+    ("tcp://127.0.0.1:0", "names the port 0, which cannot exist"),
+    ("nonsense://", "'nonsense://' has the unknown scheme 'nonsense': Dask schedulers listen at tcp://host:port"),
+    ("tcp://:8786", "names no host"),
+])
+def test_an_address_that_cannot_be_one_is_named_before_connecting(address, words):
+    """Issue 50, item 19: an invalid port was reported as "Connection refused", an unknown scheme as a server that
+    does not answer."""
+    pytest.importorskip("distributed")
+    with pytest.raises(SchedulerError) as info:
+        make_executor(scheduler=address, connect_timeout=1)
+    assert words in str(info.value)
+
+
 def test_the_cli_prints_one_line(tmp_path, capsys, closed_port):
     pytest.importorskip("distributed")
     mesh = tmp_path / "ico.obj"
