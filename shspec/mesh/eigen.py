@@ -49,7 +49,7 @@ from ..threads import reproducible_call
 from .cotan import cotan_stiffness, mass_matrix
 from .progress import announce, bar, lanczos_estimate, shown
 from .triangle_mesh import TriangleMesh
-from .validate import ZERO_AREA_RTOL
+from .validate import ZERO_AREA_RTOL, checked_face_areas
 
 __all__ = ["EigenOptions", "eigenpairs", "mesh_spectrum"]
 
@@ -361,12 +361,13 @@ def mesh_spectrum(mesh: TriangleMesh, k: int, mass: str = "lumped", *, whole_mul
     Raises
     ------
     MeshError
-        A face of zero area (below :data:`~shspec.mesh.validate.ZERO_AREA_RTOL` of the mean): its cotangents are
+        A coordinate that is not finite or too large for its squares (:func:`~shspec.mesh.validate.checked_face_areas`),
+        or a face of zero area (below :data:`~shspec.mesh.validate.ZERO_AREA_RTOL` of the mean): its cotangents are
         not defined and the pencil loses definiteness, which would give negative eigenvalues.
     """
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
-    areas = mesh.face_areas()
+    areas = checked_face_areas(mesh)  # NaN or overflowing areas would be counted as zero below
     zero = np.flatnonzero(~(areas > ZERO_AREA_RTOL * areas.mean()))
     if zero.size:
         raise MeshError(f"{zero.size} faces have zero area (first: face {zero[0]} = {mesh.faces[zero[0]].tolist()}, "

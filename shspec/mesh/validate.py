@@ -19,7 +19,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import MeshError
 from .triangle_mesh import TriangleMesh
 
-__all__ = ["validate_mesh", "ZERO_AREA_RTOL"]
+__all__ = ["validate_mesh", "checked_face_areas", "ZERO_AREA_RTOL"]
 
 #: A face whose area is below this fraction of the mean face area counts as degenerate.
 ZERO_AREA_RTOL = 1e-12
@@ -28,6 +28,31 @@ ZERO_AREA_RTOL = 1e-12
 #: a mesh then stay far from the overflow and underflow of double precision.
 _LARGEST_COORDINATE = 1e100
 _SMALLEST_COORDINATE = 1e-100
+
+
+def checked_face_areas(mesh: TriangleMesh) -> np.ndarray:
+    """The (m,) face areas of ``mesh``, once its coordinates are known to be finite and of a size whose squares
+    neither overflow nor underflow: the checks of :func:`validate_mesh` that anything computing on a mesh needs.
+
+    Raises
+    ------
+    MeshError
+        A coordinate is NaN or inf, or their largest magnitude is above 1e100 (or below 1e-100 and not zero).
+    """
+    v = mesh.vertices
+    bad = np.flatnonzero(~np.all(np.isfinite(v), axis=1))
+    if bad.size:
+        raise MeshError(f"{bad.size} vertices have NaN or inf coordinates (first: vertex {bad[0]})")
+    extent = float(np.max(np.abs(v), initial=0.0))
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        areas = mesh.face_areas()
+    if not np.all(np.isfinite(areas)) or extent > _LARGEST_COORDINATE:
+        raise MeshError(f"coordinates up to {extent:.3g} are too large: squared lengths and face areas overflow "
+                        f"double precision (keep them below {_LARGEST_COORDINATE:g}); rescale the mesh")
+    if 0 < extent < _SMALLEST_COORDINATE:
+        raise MeshError(f"coordinates of at most {extent:.3g} are too small: squared lengths and face areas "
+                        f"underflow double precision (keep them above {_SMALLEST_COORDINATE:g}); rescale the mesh")
+    return areas
 
 
 def validate_mesh(mesh: TriangleMesh, *, genus0: bool = True) -> TriangleMesh:
@@ -75,15 +100,7 @@ def validate_mesh(mesh: TriangleMesh, *, genus0: bool = True) -> TriangleMesh:
         twin = np.flatnonzero(triples[2][triples[1].ravel()] > 1)[:2]
         raise MeshError(f"faces {twin[0]} and {twin[1]} use the same three vertices {f[twin[0]].tolist()} (back to "
                         "back, a zero-volume 'pillow'); the surface is degenerate there")
-    extent = float(np.max(np.abs(v)))
-    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
-        areas = mesh.face_areas()
-    if not np.all(np.isfinite(areas)) or extent > _LARGEST_COORDINATE:
-        raise MeshError(f"coordinates up to {extent:.3g} are too large: squared lengths and face areas overflow "
-                        f"double precision (keep them below {_LARGEST_COORDINATE:g}); rescale the mesh")
-    if 0 < extent < _SMALLEST_COORDINATE:
-        raise MeshError(f"coordinates of at most {extent:.3g} are too small: squared lengths and face areas "
-                        f"underflow double precision (keep them above {_SMALLEST_COORDINATE:g}); rescale the mesh")
+    areas = checked_face_areas(mesh)
     zero = np.flatnonzero(areas <= ZERO_AREA_RTOL * areas.mean())
     if zero.size:
         raise MeshError(f"{zero.size} faces have zero area (first: face {zero[0]} = {f[zero[0]].tolist()})")

@@ -11,6 +11,7 @@ import trimesh
 
 from shspec.errors import MeshError
 from shspec.mesh.cmcf import cmcf
+from shspec.mesh.eigen import mesh_spectrum
 from shspec.mesh.mesh_files import load_mesh, save_mesh
 from shspec.mesh.shapes import icosphere
 from shspec.mesh.triangle_mesh import TriangleMesh
@@ -40,6 +41,21 @@ def test_huge_and_tiny_coordinates_are_named_not_zero_area(scale, words):
     assert "zero area" not in str(info.value)
     with pytest.raises(MeshError, match=words):
         cmcf(ICO.with_vertices(ICO.vertices * scale))
+
+
+@pytest.mark.parametrize("value, words", [(np.nan, "1 vertices have NaN or inf coordinates"),
+                                          (np.inf, "1 vertices have NaN or inf coordinates"),
+                                          (1e150, r"coordinates up to 1e\+150 are too large"),
+                                          (1e300, r"coordinates up to 1e\+300 are too large")])
+def test_mesh_spectrum_names_bad_coordinates_not_zero_areas(value, words):
+    """Issue 50, item 14: mesh_spectrum, which checks areas but not the whole mesh, called these "zero area"."""
+    v = ICO.vertices.copy()
+    v[3, 0] = value
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow or invalid-value warnings on the way
+        with pytest.raises(MeshError, match=words) as info:
+            mesh_spectrum(TriangleMesh(v, ICO.faces), 5)
+    assert "zero area" not in str(info.value)
 
 
 @pytest.mark.parametrize("suffix, merge", [(".stl", None), (".obj", True), (".ply", None)])
