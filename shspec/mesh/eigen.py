@@ -77,7 +77,8 @@ class EigenOptions:
         Largest Krylov basis before :class:`ConvergenceError`; None: min(n, 4k + 50b) (k = 100 needs ~350;
         exact multiplicities above b need more).
     dense_below : int
-        Meshes with fewer vertices are solved densely (:func:`scipy.linalg.eigh`), which is faster there.
+        Meshes with fewer vertices are solved densely (:func:`scipy.linalg.eigh`), which is faster there; so is
+        any k whose Krylov basis is expected to fill the space (2.8k + 60 ≥ n).
     seed : int
         Seed of the random start block, for reproducible eigenvectors.
     """
@@ -204,7 +205,10 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
     opt = check_options(options, EigenOptions)
     L = sp.csr_matrix(L, dtype=float)
     M = sp.csr_matrix(M, dtype=float)
-    if n < opt.dense_below or k + 2 >= n // 2:
+    if n < opt.dense_below or k + 2 >= n // 2 or lanczos_estimate(n, k, n)[0] >= n:
+        # A Krylov basis expected to fill the space costs more than the dense solve, and need not converge before it
+        # is full: near the top of a mesh's spectrum Weyl's estimate, which places σ, is far too high (σ = 463 for
+        # λ_1100 = 652 of a 2562-vertex mesh), and the pairs around σ cover [0, λ_k] only with many more than k.
         lam, V = sla.eigh(L.toarray(), M.toarray())
         return _select(lam, V, k, opt.multiplet_rtol, whole_multiplets)
     area = float(M.sum())
@@ -239,14 +243,13 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
     # The basis needed was 2.4k + 60 to 3.3k on icospheres and blob (k = 10..200); Ritz checks cost an m-by-m
     # eigendecomposition each, so they start just below that, at 2.2k + 40, and are spaced by 15 % growth.
     next_check = int(2.2 * k) + 40
-    nconv = 0
+    nconv, reach = 0, 0.0
     inject = False
     verified_count = -1
     with bar(n, expected, "eigenpairs (Krylov basis)", "vectors") as shown_bar:
         while True:
             if m_next + b > max_dim:
-                raise ConvergenceError(f"shift-invert Lanczos: only {nconv} of more than {k} eigenpairs converged "
-                                       f"with a Krylov basis of {m_next} vectors; raise EigenOptions.max_dim")
+                raise ConvergenceError(_not_converged(nconv, reach, sigma, k, m))
             # Q[:, m:m_next] is the newest block: apply OP and orthogonalize, first against the previous two blocks
             # (the block three-term recurrence, which removes almost everything), then once against the whole basis
             # (full re-orthogonalization, which removes the rounding errors that make plain Lanczos lose
@@ -283,7 +286,7 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
             Q[:, m_next:m_next + nb] = new
             prev, m, m_next = m, m_next, m_next + nb
             shown_bar.update(nb)
-            if m < next_check:
+            if m < next_check and m_next + b <= max_dim:  # the last basis before max_dim is always checked
                 continue
             next_check = int(1.15 * m)
             # Ritz pairs of OP on span Q[:, :m]; residual norms from the coupling block T[m:, :m].
@@ -297,7 +300,8 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
             if nconv == 0:
                 continue
             # The converged pairs are the eigenvalues within D = 1/|μ| of σ; when D ≥ σ they are all of [0, σ + D].
-            if 1.0 / abs(mu[nconv - 1]) < sigma:
+            reach = 1.0 / abs(mu[nconv - 1])
+            if reach < sigma:
                 continue
             lam = sigma + 1.0 / mu[:nconv]
             ascending = np.argsort(lam)
@@ -310,6 +314,18 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
                     verified_count, inject = end, True
                     continue
                 return _finish(L, M, Q[:, :m] @ S[:, ascending], k, opt.multiplet_rtol, whole_multiplets)
+
+
+def _not_converged(nconv: int, reach: float, sigma: float, k: int, m: int) -> str:
+    """Why the Krylov basis of ``m`` vectors is not enough: too few converged pairs, or converged pairs (all the
+    eigenvalues within ``reach`` of the shift) that do not reach down to λ₀ yet."""
+    if reach >= sigma or nconv == 0:
+        found = f"{nconv} eigenpairs converged, and {k + 1} are needed"
+    else:
+        found = (f"the {nconv} eigenpairs that converged are those within {reach:.4g} of the shift {sigma:.4g}, "
+                 "which do not reach down to the lowest ones yet")
+    return (f"shift-invert Lanczos did not converge with a Krylov basis of {m} vectors: {found}; raise "
+            "EigenOptions.max_dim, or move the shift (EigenOptions.sigma) nearer the middle of the wanted eigenvalues")
 
 
 def _orthonormal_block(basis, W, mmul, rng, scale):

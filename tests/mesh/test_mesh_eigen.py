@@ -166,3 +166,31 @@ def test_zero_area_face_raises_instead_of_negative_eigenvalues():
         mesh_spectrum(mesh, 10)
     with pytest.raises(InvalidArgumentError, match="negative eigenvalue"):
         eigenpairs(cotan_stiffness(mesh), mass_matrix(mesh), 10)
+
+
+def test_the_last_basis_before_max_dim_is_checked():
+    """Issue 50, item 23: Ritz checks are spaced by 15 % growth, and the solver gave up at max_dim without checking
+    the basis it had grown since the last one (here 288 vectors suffice; the checks were at 260 and 299)."""
+    mesh = blob(3)
+    spec = mesh_spectrum(mesh, 100, options=EigenOptions(dense_below=0, max_dim=290))
+    ref = sla.eigh(cotan_stiffness(mesh).toarray(), mass_matrix(mesh).toarray(), eigvals_only=True)[:100]
+    np.testing.assert_allclose(spec.eigenvalues, ref, rtol=1e-10, atol=1e-10)
+
+
+def test_a_basis_too_small_says_what_converged():
+    """The message said "only 104 of more than 100 eigenpairs converged": 104 had, none of them the lowest."""
+    with pytest.raises(ConvergenceError, match="the 104 eigenpairs that converged are those within .* of the shift "
+                                               ".*, which do not reach down to the lowest ones yet") as info:
+        mesh_spectrum(blob(3), 100, options=EigenOptions(dense_below=0, max_dim=274))
+    assert "only" not in str(info.value)
+
+
+def test_a_large_k_on_a_2562_vertex_mesh_is_solved():
+    """Issue 50, item 23: k = 900..1100 of 2562 vertices raised ConvergenceError.  Weyl's estimate, which places
+    the shift, is far too high that close to the top of a mesh's spectrum, and the Krylov basis filled the space
+    before the pairs converged; such a k is solved densely now (faster too: 7 s against 25 s)."""
+    mesh, k = blob(4), 1000
+    spec = mesh_spectrum(mesh, k)
+    assert spec.eigenvalues.size == k and np.all(np.diff(spec.eigenvalues) >= 0)
+    M = mass_matrix(mesh)
+    np.testing.assert_allclose(spec.eigenvectors.T @ (M @ spec.eigenvectors), np.eye(k), atol=1e-10)
