@@ -17,7 +17,8 @@ Formats, chosen by the file's suffix:
     ``uncertainty``, ``std``); a header of a single column names the eigenvalues whatever its name.
 
 The *error* column, when there is one, is the absolute uncertainty of each eigenvalue; ``shspec topology`` propagates
-it (as its largest relative error, unless ``--noise`` is given); fits ignore it.
+it (as its largest relative error, unless ``--noise`` is given) and fits weigh each eigenvalue by it.  The reader
+checks it once for every command: after λ₀ each error must be finite, > 0 and below its eigenvalue.
 
 λ₀ = 0 is prepended when the file starts above 0 (relative to its largest value, 1e-8).  A negative value, a value
 that is not a finite number, or a descent is refused: the error names the file and, for text, the line and column.
@@ -276,6 +277,12 @@ def read_spectrum_file(path) -> SpectrumFile:
         err = np.array(errors, dtype=float)
         for i in np.flatnonzero(~(np.isfinite(err) & (err >= 0)))[:1]:
             raise _fail(path, f"error {i} is {err[i]} ({error_cells[i]}); errors must be finite and >= 0")
+        first = 0 if lam[0] > ZERO_TOL * lam[-1] else 1  # λ₀ = 0 is exact whatever the file says its error is
+        for i in first + np.flatnonzero(~((err[first:] > 0) & (err[first:] < lam[first:])))[:1]:
+            raise _fail(path, f"error {i} is {err[i]:g} ({error_cells[i]}) for the eigenvalue {lam[i]:g}; the error "
+                        "of every eigenvalue after lambda_0 must be > 0 (a fit divides by it; leave the column out "
+                        "for exact values) and below the eigenvalue (a relative error of 1 or more leaves nothing of "
+                        "it)")
     if lam[0] > ZERO_TOL * lam[-1]:
         lam = np.concatenate([[0.0], lam])
         err = None if err is None else np.concatenate([[0.0], err])

@@ -4,6 +4,7 @@ input with the file, line and column named; the mesh-spectrum -> fit round trip.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -11,7 +12,7 @@ import pytest
 from shspec.cli import main
 from shspec.errors import InvalidArgumentError
 from shspec.spectrum_file import read_spectrum, read_spectrum_file
-from shspec.targets import parse_target
+from shspec.fitting.targets import parse_target
 
 LAM = [float(l * (l + 1)) for l in range(6) for _ in range(2 * l + 1)]  # the round sphere, degrees 0-5
 
@@ -54,6 +55,23 @@ def test_a_three_column_file_is_index_eigenvalue_error_for_every_command(tmp_pat
     header = tmp_path / "named.csv"
     header.write_text("k,lambda,sigma\n" + "\n".join(f"{i},{v},0.5" for i, v in enumerate(LAM)))
     np.testing.assert_array_equal(read_spectrum_file(header).errors, [0.5] * len(LAM))
+
+
+@pytest.mark.parametrize("error, words", [(0.0, "error 3 is 0 (line 4, column 3) for the eigenvalue 2"),
+                                          (3.0, "error 3 is 3 (line 4, column 3) for the eigenvalue 2")])
+def test_one_rule_for_the_error_column_with_file_and_line(tmp_path, capsys, error, words):
+    """Issue 50, item 20: a zero error passed the reader and topology and was refused by fit without the file and
+    line; an error above its eigenvalue made topology fail on "relative_noise", a parameter never set."""
+    errors = [0.0] + [0.01 * v for v in LAM[1:]]  # the error of lambda_0 may be 0: lambda_0 = 0 is exact
+    errors[3] = error
+    path = tmp_path / "errs.txt"
+    path.write_text("\n".join(f"{i} {v} {e}" for i, (v, e) in enumerate(zip(LAM, errors))))
+    with pytest.raises(InvalidArgumentError, match=re.escape(f"{path}: {words}")):
+        read_spectrum_file(path)
+    with pytest.raises(InvalidArgumentError, match=re.escape(words)):
+        parse_target(f"spectrum:{path}", lmax=4, numeig=len(LAM), lmax_factor=2)
+    code, err = _topology(path, capsys)
+    assert code == 1 and words in err and "relative_noise" not in err
 
 
 @pytest.mark.parametrize("text, message", [
