@@ -64,6 +64,16 @@ def test_negative_because_of_truncation_says_so():
     assert "truncation" not in str(err.value) and "cutting" not in str(err.value)
 
 
+def test_a_deeply_negative_rho_is_not_called_a_truncation():
+    """Issue 50, item 25: coefficients up to degree 3 whose top degree is 0 look undecayed, and this rho, negative
+    by 15 % of its maximum, was called "probably the truncation of a positive function"."""
+    a = np.zeros(16)
+    a[0], a[6] = 1.0, 1.5
+    with pytest.raises(NotPositiveError, match="rho is negative there") as err:
+        spectrum(a, lmax=8, k=4)
+    assert "truncation of a positive function, not" not in str(err.value)
+
+
 def test_strings_are_refused_with_a_shspec_error():
     with pytest.raises(InvalidArgumentError, match="rho must be"):
         spectrum("abc", lmax=4, k=4)
