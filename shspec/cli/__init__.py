@@ -1,6 +1,6 @@
 """The ``shspec`` command line: a thin layer over the library, one module per group of subcommands.
 
-Each module listed in ``_COMMAND_MODULES`` has a ``register(subparsers)`` function that adds its subcommands and sets
+Each module listed in ``COMMAND_MODULES`` has a ``register(subparsers)`` function that adds its subcommands and sets
 ``func`` on them; ``func(args)`` returns the process exit code.
 
 SIGTERM (what ``kill``, a batch scheduler or a container stop sends) is handled like Ctrl-C: it raises
@@ -21,7 +21,7 @@ import warnings
 from .. import __version__
 from ..errors import ShspecError, ShspecWarning
 
-_COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment", "shspec.cli.fit", "shspec.cli.embed",
+COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment", "shspec.cli.fit", "shspec.cli.embed",
                     "shspec.cli.identifiability", "shspec.cli.precompute", "shspec.cli.topology"]
 
 
@@ -33,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in _COMMAND_MODULES:
+    for name in COMMAND_MODULES:
         importlib.import_module(name).register(sub)
     return parser
 
@@ -74,7 +74,11 @@ def _warnings_as_lines(command: str):
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    try:
+        parser = build_parser()  # imports every command's module: a second or more
+    except KeyboardInterrupt:
+        print("shspec: interrupted", file=sys.stderr)
+        return 130
     args = parser.parse_args(argv)
     if getattr(args, "func", None) is None:
         parser.print_help()
