@@ -4,9 +4,16 @@ Every error raised on purpose by shspec is a subclass of :class:`ShspecError`, s
 library's complaints without catching programming errors (``TypeError`` from a typo, say).  Each subclass also
 derives from the built-in exception a Python user would expect (``ValueError`` for bad values, ``OSError`` for
 the file system), so existing ``except ValueError`` code keeps working.
+
+Warnings: shspec emits its own through :func:`warn`, which attributes them to the caller's line, not to a line of
+shspec.
 """
 
 from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
 
 __all__ = [
     "ShspecError",
@@ -116,3 +123,19 @@ class TruncationWarning(ShspecWarning):
 class TopologyError(ShspecError, ValueError):
     """A spectrum whose heat trace says, confidently, that the surface has a topology the operation cannot handle
     (a genus-0 fit of a torus's spectrum, say)."""
+
+
+#: The folder of the package: frames whose file lies in it are shspec's own.
+_PACKAGE = str(Path(__file__).resolve().parent / "_")[:-1]  # with the separator: not shspec_launcher's files
+
+
+def warn(message: str, category: type[Warning] = ShspecWarning) -> None:
+    """Issue a warning attributed to the first frame outside shspec (the user's call), however deep in shspec its
+    cause lies: a fixed ``stacklevel`` pointed at the wrapper of :func:`~shspec.threads.reproducible_call`
+    ("threads.py:150") or at another of shspec's own lines.  In a thread that runs shspec's code from its start, the
+    thread's own frames outside shspec.  (Python 3.12's ``skip_file_prefixes`` does the same; shspec supports 3.11.)
+    """
+    frame, level = sys._getframe(1), 2  # stacklevel 2 is warn's caller
+    while frame.f_back is not None and frame.f_code.co_filename.startswith(_PACKAGE):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, category, stacklevel=level)

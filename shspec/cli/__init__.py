@@ -57,14 +57,15 @@ def _sigterm_as_interrupt():
 
 @contextlib.contextmanager
 def _warnings_as_lines(command: str):
-    """shspec's own warnings as one line each on stderr, as a command's errors are (not Python's file:line form)."""
+    """Warnings as one line each on stderr, as a command's errors are: shspec's own as their message; others (a
+    library's, or a RuntimeWarning of shspec's) with their category and the place that issued them, without Python's
+    echo of that source line, which says nothing to a user of the command line."""
     default = warnings.showwarning
 
     def show(message, category, filename, lineno, file=None, line=None):
-        if issubclass(category, ShspecWarning):
-            print(f"shspec {command}: warning: {message}", file=sys.stderr if file is None else file)
-        else:
-            default(message, category, filename, lineno, file, line)
+        what = (f"{message}" if issubclass(category, ShspecWarning) else
+                f"{category.__name__}: {message} ({filename}:{lineno})")
+        print(f"shspec {command}: warning: {what}", file=sys.stderr if file is None else file)
 
     warnings.showwarning = show
     try:

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InvalidArgumentError
+from ._common import load_numbers
 from ..sphere.factor import ConformalFactor
 
 RHO_HELP = (
@@ -50,9 +51,11 @@ def parse_rho(text: str, lmax_factor: int) -> ConformalFactor:
                     raise InvalidArgumentError(f"{path}: a JSON object needs a 'cilm' or 'coefficients' entry")
             data = np.asarray(obj, dtype=float)
         elif suffix in (".txt", ".dat", ".csv"):
-            data = np.loadtxt(path, ndmin=1)
+            data = load_numbers(path, "coefficients of rho")
         else:
             raise InvalidArgumentError(f"{path}: unknown coefficient file type {suffix!r} (use .npy, .json, .txt)")
+    except InvalidArgumentError:
+        raise
     except (OSError, ValueError, EOFError) as exc:  # np.load of an empty file: EOFError
         raise InvalidArgumentError(f"cannot read coefficients from {path}: {exc or type(exc).__name__}") from exc
     return ConformalFactor(data, name=path.stem)

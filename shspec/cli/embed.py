@@ -6,13 +6,12 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from ..atomic import atomic_output
 from ..embed.embed import EmbedOptions, embed
 from ..errors import InvalidArgumentError, OutputError
 from ..pipeline.validation import ValidationOptions, validate_target, write_report
 from ..mesh.mesh_files import load_mesh, save_mesh
+from ._common import load_numbers
 
 
 def register(subparsers) -> None:
@@ -55,10 +54,7 @@ def register(subparsers) -> None:
 
 def _embed(args) -> int:
     sphere = load_mesh(args.sphere, validate=False)
-    try:
-        factors = np.loadtxt(args.factors, ndmin=1)
-    except (OSError, ValueError) as exc:
-        raise InvalidArgumentError(f"cannot read factors from {args.factors}: {exc}") from None
+    factors = load_numbers(args.factors, "conformal factors of the vertices")
     res = embed(sphere, factors, EmbedOptions(steps=args.steps, pressure=args.pressure, smoothing=args.smoothing))
     save_mesh(res.mesh, args.out)
     summary = {"sphere": str(args.sphere), "factors": str(args.factors), "out": str(args.out),

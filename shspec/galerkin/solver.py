@@ -21,12 +21,11 @@ dropped degrees bound the first part, and the eigenfunctions' first-order conten
 from __future__ import annotations
 
 import dataclasses
-import warnings
 
 import numpy as np
 
 from ..checks import check_float, real_array
-from ..errors import InvalidArgumentError, NotPositiveError, ShspecError, TruncationWarning
+from ..errors import InvalidArgumentError, NotPositiveError, ShspecError, TruncationWarning, warn
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
 from ..sphere.factor import ConformalFactor, as_factor
 from ..sphere.harmonics import check_degree
@@ -99,10 +98,10 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
                                   factor_truncation(factor.coefficients, model.lmax_factor, low.value,
                                                     extrapolate=True))
     if estimate.total > truncation_tol:
-        warnings.warn(f"the spectrum of {factor.name} at Lb = {lmax}, La = {model.lmax_factor} may be off by "
-                      f"{_percent(estimate.total)} (relative): "
-                      + _truncation_advice(estimate, factor, lmax, model.lmax_factor, (errors, decays, truncation_tol)),
-                      TruncationWarning, stacklevel=2)
+        warn(f"the spectrum of {factor.name} at Lb = {lmax}, La = {model.lmax_factor} may be off by "
+             f"{_percent(estimate.total)} (relative): "
+             + _truncation_advice(estimate, factor, lmax, model.lmax_factor, (errors, decays, truncation_tol)),
+             TruncationWarning)
     return dataclasses.replace(result, truncation=estimate)
 
 

@@ -38,7 +38,6 @@ import os
 import re
 import threading
 import time
-import warnings
 from collections import OrderedDict
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -50,8 +49,8 @@ import numpy as np
 
 from .._version import __version__
 from ..atomic import atomic_hdf5, temporary_files, write_failure
-from ..errors import (BandLimitError, CacheLocationError, CorruptTableError, OutdatedTableError, ShspecWarning,
-                      TableMismatchError)
+from ..errors import (BandLimitError, CacheLocationError, CorruptTableError, OutdatedTableError, TableMismatchError,
+                      warn)
 from ..outputs import ensure_directory
 from ..resources import check_need
 from ..sphere.harmonics import degree_order
@@ -429,7 +428,7 @@ def load_table(lmax: int, lmax_factor: int, directory: str | os.PathLike | None 
             try:
                 table = _read(info.path).restrict(lmax, lmax_factor)
             except (CorruptTableError, TableMismatchError) as exc:
-                warnings.warn(f"skipping a damaged cached table: {exc}", stacklevel=2)
+                warn(f"skipping a damaged cached table: {exc}")
                 continue
             _COVERED[missing] = info.path
             return table
@@ -481,7 +480,7 @@ def get_table(lmax: int, lmax_factor: int, *, cache_dir: str | os.PathLike | Non
     except (CorruptTableError, TableMismatchError) as exc:
         if not (rebuild_corrupt or build and isinstance(exc, OutdatedTableError)):
             raise
-        warnings.warn(f"rebuilding the Gaunt table: {exc}", ShspecWarning, stacklevel=2)
+        warn(f"rebuilding the Gaunt table: {exc}")
     path = table_path(lmax, lmax_factor, directory)
     ensure_cache_dir(path.parent)
     need = table_need(lmax, lmax_factor)

@@ -33,7 +33,6 @@ icosahedral symmetry) are not groups in this sense.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,7 +41,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from ..checks import check_int, check_options
-from ..errors import ConvergenceError, InvalidArgumentError, MeshError
+from ..errors import ConvergenceError, InvalidArgumentError, MeshError, warn
 from ..spectral_model import Spectrum
 from ..resources import human_bytes
 from ..threads import reproducible_call
@@ -162,9 +161,8 @@ def _select(lam, V, k, rtol, whole):
             "definite (a mesh with degenerate faces? see shspec.mesh.validate_mesh)")
     end = _group_end(lam, k, rtol)
     if end > k and not whole:
-        warnings.warn(f"eigenvalues {k - 1}..{end - 1} form one degenerate group (within {rtol:g}); only the first "
-                      f"{k} are returned, so the group is cut and its members' eigenvectors are arbitrary",
-                      RuntimeWarning, stacklevel=3)
+        warn(f"eigenvalues {k - 1}..{end - 1} form one degenerate group (within {rtol:g}); only the first {k} are "
+             "returned, so the group is cut and its members' eigenvectors are arbitrary", RuntimeWarning)
     end = end if whole else k
     if end == lam.size and whole and end > k and lam.size < V.shape[0]:
         # The group fills every computed pair: the caller must ask for more, we cannot tell where it ends (when
