@@ -25,7 +25,8 @@ from common import load_average, machine_info, main_with_only, threads  # noqa: 
 
 from shspec import HarmonicModel  # noqa: E402
 from shspec.errors import NotPositiveError  # noqa: E402
-from shspec.inverse import FitOptions, blob_factor, harmonic_target  # noqa: E402
+from shspec.inverse import FitOptions
+from shspec.fitting import blob_factor, harmonic_target  # noqa: E402
 from shspec.inverse.energy import Objective, eigenvalue_weights  # noqa: E402
 from shspec.inverse.optimize import make_optimizer  # noqa: E402
 from shspec.inverse.parametrization import Parametrization  # noqa: E402

@@ -34,8 +34,8 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 
 from shspec import HarmonicModel, __version__  # noqa: E402
 from shspec.parallel import make_executor, stop_executor  # noqa: E402
-from shspec.inverse import (FitOptions, align, blob_factor, fit, harmonic_target, mesh_target,  # noqa: E402
-                            degree_ramp, numeig_ramp)
+from shspec.inverse import FitOptions, align, fit, # noqa: E402                             degree_ramp, numeig_ramp
+from shspec.fitting import blob_factor, harmonic_target, mesh_target
 from shspec.sphere.random import random_centred_coefficients  # noqa: E402
 from shspec.inverse import plots  # noqa: E402
 from shspec.mesh.figures import plot_spectra_validation, plot_vertex_factors  # noqa: E402
@@ -177,7 +177,7 @@ def bench_success_by_degree(report, starts, workers, degrees=(6, 8, 12)):
     ``shspec fit`` plans without --numeig (degree 10 and the blob at 15 are the goal sections): every start run (a
     rate needs them all, where the default stops at the first success).  Degrees not run keep their earlier
     records."""
-    from shspec.inverse.planning import plan_fit
+    from shspec.fitting.numeig_plan import plan_fit
 
     section = json.loads(OUT.read_text()).get("success_by_degree", {}) if OUT.exists() else {}
     for la in degrees:
@@ -196,7 +196,7 @@ def bench_success_by_degree(report, starts, workers, degrees=(6, 8, 12)):
 
 def bench_goal_blob(report, starts, workers):
     """Issue 14's second goal: the blob at La = 15 with the K that ``shspec identifiability`` recommends."""
-    from shspec.inverse.planning import plan_numeig
+    from shspec.fitting.numeig_plan import plan_numeig
 
     la = 15
     truth = blob_factor(la)
@@ -285,7 +285,7 @@ def bench_mesh_log(report, quick):
     LM against L-BFGS and linear factors; the adaptive fit from an icosphere; 1200 and 8000 vertices."""
     from shspec.mesh.model import MeshModel
     from shspec.mesh.cmcf import cmcf
-    from shspec.pipeline.adaptive import AdaptiveOptions, adaptive_fit
+    from shspec.fitting.adaptive import AdaptiveOptions, adaptive_fit
 
     k = 40 if quick else 100
     section = {"setting": f"area 4pi, {k} eigenvalues, relative weights, Dirichlet R s'Ls/2, one start from the "

@@ -38,7 +38,7 @@ from shspec.galerkin.truncation import basis_truncation  # noqa: E402
 from shspec.gaunt.cache import get_table  # noqa: E402
 from shspec.sphere.harmonics import degrees  # noqa: E402
 from shspec.sphere.random import random_centred_coefficients  # noqa: E402
-from shspec.targets import blob_factor  # noqa: E402
+from shspec.fitting.targets import blob_factor  # noqa: E402
 
 AXIS = (0.3, -0.5, 0.81)  # a tilted axis, so that every order m of rho is present
 TIMING = (30, 15, 256)

@@ -96,10 +96,10 @@ def consistent_fits(work: Path) -> dict:
     from shspec.galerkin.log_model import LogHarmonicModel
     from shspec.inverse import FitOptions, fit
     from shspec.inverse.output import surface_record
-    from shspec.inverse.surface_plan import TRUTH_DEGREE, default_numeig, log_floor, plan_surface_fit
+    from shspec.fitting.surface_plan import TRUTH_DEGREE, default_numeig, log_floor, plan_surface_fit
     from shspec.mesh.cmcf import cmcf
     from shspec.mesh.mesh_files import load_mesh
-    from shspec.targets import mesh_target, refined_target
+    from shspec.fitting.targets import mesh_target, refined_target
 
     mesh = load_mesh(star_mesh(work / "star10k.obj"))
     flow = cmcf(mesh)

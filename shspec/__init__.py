@@ -3,7 +3,8 @@
 The public API is a few verbs over a few value objects:
 
 * value objects: :class:`ConformalFactor` (ρ), :class:`TriangleMesh`, :class:`GauntTable`, :class:`FitResult`;
-* verbs: :func:`spectrum` (forward), :func:`convergence`, :func:`fit` (inverse), :func:`align` (compare up to
+* verbs: :func:`spectrum` (forward), :func:`convergence`, :func:`prepare_fit` and :func:`fit` (inverse: plan a fit
+  from a mesh, a spectrum or a ρ, then run it), :func:`align` (compare up to
   Möbius and O(3)), :func:`cmcf` (mesh → sphere), :func:`embed` (factors → surface);
 * the engine underneath: :func:`wigner3j`, :func:`real_gaunt`, :func:`get_table`.
 """
@@ -14,6 +15,7 @@ from .errors import *  # noqa: F401,F403
 from .errors import __all__ as _errors_all
 from .galerkin import HarmonicModel, LogHarmonicModel, SpectrumResult, convergence, convergence_in_factor, spectrum
 from .gaunt import GauntTable, get_table, real_gaunt, wigner3j
+from .fitting import FitPlan, FitRequest, prepare_fit
 from .inverse import FitOptions, FitResult, Stage, Target, align, fit
 from .mesh import CMCFOptions, CMCFResult, MeshModel, TriangleMesh, cmcf, load_mesh, mesh_spectrum, save_mesh
 from .sphere import ConformalFactor, cilm_to_vector, degree_order, flat_index, ncoeffs, vector_to_cilm, vector_to_shcoeffs
@@ -28,7 +30,7 @@ __all__ = [
     # forward
     "ConformalFactor", "HarmonicModel", "LogHarmonicModel", "SpectrumResult", "spectrum", "convergence", "convergence_in_factor",
     # inverse
-    "FitOptions", "FitResult", "Stage", "Target", "fit", "align",
+    "FitOptions", "FitResult", "Stage", "Target", "fit", "align", "prepare_fit", "FitPlan", "FitRequest",
     # meshes and re-embedding
     "TriangleMesh", "load_mesh", "save_mesh", "mesh_spectrum", "MeshModel", "cmcf", "CMCFOptions", "CMCFResult",
     "embed", "EmbedOptions", "EmbedResult",

@@ -7,7 +7,8 @@ import pytest
 from shspec import HarmonicModel
 from shspec.checks import check_options
 from shspec.errors import InvalidArgumentError, ShspecError
-from shspec.inverse import blob_factor, fit, harmonic_target
+from shspec.inverse import fit
+from shspec.fitting import blob_factor, harmonic_target
 from shspec.mesh.cmcf import CMCFOptions, cmcf
 from shspec.mesh.model import MeshModel
 from shspec.mesh.shapes import icosphere

@@ -14,7 +14,8 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from shspec.galerkin import HarmonicModel  # noqa: E402
-from shspec.inverse import FitOptions, Stage, blob_factor, fit, harmonic_target  # noqa: E402
+from shspec.inverse import FitOptions, Stage, fit
+from shspec.fitting import blob_factor, harmonic_target  # noqa: E402
 from shspec.inverse.plots import RESIDUAL_FLOOR, plot_history, plot_residuals  # noqa: E402
 from shspec.mesh.figures import plot_vertex_factors  # noqa: E402
 from shspec.mesh.plot import plot_hammer  # noqa: E402

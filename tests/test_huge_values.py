@@ -10,7 +10,7 @@ from shspec.cli import main
 from shspec.embed import vertex_factors
 from shspec.errors import InvalidArgumentError, MeshError, ShspecError
 from shspec.galerkin import HarmonicModel
-from shspec.inverse import blob_factor
+from shspec.fitting import blob_factor
 from shspec.mesh import TriangleMesh, cmcf, icosphere
 from shspec.spectral import estimate_topology
 

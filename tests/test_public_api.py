@@ -17,7 +17,7 @@ from shspec.errors import ConventionError, InvalidArgumentError, ShspecError
 from shspec.galerkin import HarmonicModel
 from shspec.mesh.shapes import icosphere
 from shspec.sphere.factor import ConformalFactor
-from shspec.targets import Target, blob_factor
+from shspec.fitting.targets import Target, blob_factor
 
 A = blob_factor().truncated(2).coefficients
 MESH = icosphere(0)
@@ -151,7 +151,7 @@ def test_the_mesh_reader_gives_a_mesh_or_a_shspec_error(tmp_path_factory, conten
        suffix=st.sampled_from([".npy", ".json", ".txt", ".h5"]))
 def test_the_other_readers_give_a_result_or_a_shspec_error(tmp_path_factory, content, reader, suffix):
     from shspec.cli._rho import parse_rho
-    from shspec.cli.fit import read_initial
+    from shspec.fitting import read_initial
     from shspec.gaunt.cache import load_table, table_path
     from shspec.inverse.checkpoint import load_checkpoint, load_result_summary
 

@@ -11,7 +11,7 @@ import pytest
 
 from shspec.cli import main
 from shspec.errors import InvalidArgumentError
-from shspec.spectrum_file import read_spectrum, read_spectrum_file
+from shspec.spectrum_file import check_spectrum_path, read_spectrum, read_spectrum_file
 from shspec.fitting.targets import parse_target
 
 LAM = [float(l * (l + 1)) for l in range(6) for _ in range(2 * l + 1)]  # the round sphere, degrees 0-5
@@ -92,6 +92,19 @@ def test_text_errors_name_the_file_line_and_column(tmp_path, text, message, caps
     assert str(path) in str(info.value)
     code, err = _topology(path, capsys)
     assert code == 1 and "bad.txt" in err and "loadtxt" not in err
+
+
+def test_a_directory_or_a_missing_file_is_named_before_reading(tmp_path):
+    """Issue 50, item 21: 'shspec fit --target spectrum:DIR' said "no such file"; check_spectrum_path is what a
+    command checks before its long work, with the reader's own words."""
+    with pytest.raises(InvalidArgumentError, match=f"{re.escape(str(tmp_path))} is a directory, not a spectrum file"):
+        check_spectrum_path(tmp_path)
+    with pytest.raises(InvalidArgumentError, match="gone.txt: no such spectrum file$"):
+        check_spectrum_path(tmp_path / "gone.txt")
+    link = tmp_path / "link.txt"
+    link.symlink_to(tmp_path / "gone.txt")
+    with pytest.raises(InvalidArgumentError, match=r"no such spectrum file \(a symbolic link to .*gone.txt, which"):
+        read_spectrum(link)
 
 
 def test_a_json_object_with_the_wrong_key_names_its_keys(tmp_path):

@@ -59,7 +59,7 @@ import multiprocessing
 import numpy as np
 
 from shspec.galerkin import spectrum
-from shspec.inverse import blob_factor
+from shspec.fitting import blob_factor
 
 
 def job(scale):
@@ -78,7 +78,7 @@ FORK_ON_GNU_OPENMP = """
 import multiprocessing
 
 from shspec.galerkin import spectrum
-from shspec.inverse import blob_factor
+from shspec.fitting import blob_factor
 
 
 def job(scale):
@@ -130,7 +130,7 @@ import threading
 
 from shspec import threads
 from shspec.galerkin import spectrum
-from shspec.inverse import blob_factor
+from shspec.fitting import blob_factor
 
 spectrum(blob_factor(), 8, 6, truncation_tol=None)
 held, release = threading.Event(), threading.Event()

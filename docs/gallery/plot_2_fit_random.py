@@ -9,7 +9,8 @@ the fitted ρ is compared with the truth after Möbius centering and the best ro
 import matplotlib.pyplot as plt
 
 from shspec import ConformalFactor, HarmonicModel
-from shspec.inverse import FitOptions, align, fit, harmonic_target
+from shspec.inverse import FitOptions, align, fit
+from shspec.fitting import harmonic_target
 from shspec.sphere.random import random_centred_coefficients
 
 truth = ConformalFactor(random_centred_coefficients(3, 4, 0.2), name="random rho of degree 4")

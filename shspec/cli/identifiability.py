@@ -9,9 +9,9 @@ import numpy as np
 from .help_format import HelpFormatter
 from ..errors import InvalidArgumentError
 from ..galerkin.truncation import basis_degree_for
-from ..inverse.planning import candidate_numeigs, plan_numeig
+from ..fitting.numeig_plan import candidate_numeigs, plan_numeig
 from ..sphere.random import random_centred_coefficients
-from ..targets import blob_factor, parse_target
+from ..fitting.targets import blob_factor, parse_target
 
 
 def register(subparsers) -> None:

@@ -25,7 +25,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import InvalidArgumentError
-from ..inverse import FitOptions, fit, mesh_target
+from ..inverse import FitOptions, fit
+from ..fitting import mesh_target
 from ..inverse.energy import relative_residual, rms_relative_residual
 from ..inverse.identifiability import determined_directions, isospectral_point
 from ..mesh import MeshModel

@@ -13,8 +13,8 @@ for the Hausdorff distance to the mesh, over its bounding diagonal.
 For the first run also: target (b), the spectrum of the cMCF sphere carrying the cMCF factors (exactly
 representable), fitted along a regularization path down to R = 0, with the RMS log error over the directions the
 eigenvalues determine (:func:`shspec.inverse.identifiability.determined_directions`); the adaptive fit from a
-generic icosphere (:func:`shspec.pipeline.adaptive.adaptive_fit`, aligned to the truth by Möbius + O(3)); and the
-recursive fit (:func:`shspec.pipeline.recursive.recursive_fit` with ``warm_start="init"``: fit, embed, cMCF of the
+generic icosphere (:func:`shspec.fitting.adaptive.adaptive_fit`, aligned to the truth by Möbius + O(3)); and the
+recursive fit (:func:`shspec.fitting.recursive.recursive_fit` with ``warm_start="init"``: fit, embed, cMCF of the
 embedding, fit again from the transferred factors, embed again) at the recursive R.
 """
 
@@ -26,11 +26,12 @@ import numpy as np
 
 from ..embed import EmbedOptions, embed, render_mesh, surface_distance
 from ..errors import InvalidArgumentError
-from ..inverse import FitOptions, fit, mesh_target
+from ..inverse import FitOptions, fit
+from ..fitting import mesh_target
 from ..inverse.identifiability import determined_directions
 from ..mesh import MeshModel, cmcf, plot_hammer
-from ..pipeline.adaptive import AdaptiveOptions, adaptive_fit
-from ..pipeline.recursive import RecursiveOptions, recursive_fit
+from ..fitting.adaptive import AdaptiveOptions, adaptive_fit
+from ..fitting.recursive import RecursiveOptions, recursive_fit
 from .base import Experiment, Finding, register
 from .common import MESH_DIR, load_mesh_area_4pi, save_figure
 from .fitting import Progress, single_threaded, vertex_factor_errors, write_h5

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..inverse import FitOptions, Stage, fit, mesh_target
+from ..inverse import FitOptions, Stage, fit
+from ..fitting import mesh_target
 from ..mesh.figures import plot_vertex_factors
 from ..mesh import MeshModel, star_surface
 from .base import Experiment, Finding, register

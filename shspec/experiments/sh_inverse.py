@@ -23,7 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..galerkin.model import HarmonicModel
-from ..inverse import FitOptions, Stage, align, blob_factor, fit, harmonic_target, parse_schedule, save_result
+from ..inverse import FitOptions, Stage, align, fit, parse_schedule, save_result
+from ..fitting import blob_factor, harmonic_target
 from ..inverse.plots import plot_factors
 from ..inverse.schedule import default_schedule
 from ..sphere.rotate import power_spectrum

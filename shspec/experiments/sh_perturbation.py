@@ -5,8 +5,8 @@ For each shape (l, m) (the study's |Y_3^3| and |Y_3^2| stars) and each p of the 
 spectrum of the star (icosphere of ``subdivisions``), as ``shspec fit --target star:...`` takes it:
 
 * the harmonic fit: the spectrum Richardson-extrapolated from two subdivisions, with its error
-  (:func:`~shspec.targets.refined_target`), the plan of a log-ρ fit from the first ``numeig`` eigenvalues
-  (:func:`~shspec.inverse.surface_plan.plan_surface_fit`: La, K and Lb from the floor of the basis against the
+  (:func:`~shspec.fitting.targets.refined_target`), the plan of a log-ρ fit from the first ``numeig`` eigenvalues
+  (:func:`~shspec.fitting.surface_plan.plan_surface_fit`: La, K and Lb from the floor of the basis against the
   target's errors, the predicted error), and the fit (:class:`~shspec.galerkin.log_model.LogHarmonicModel`, held to
   the plan's errors).  Where the plan finds the basis beyond its reach (``beyond_basis``: the floor at every La it
   analyses exceeds the accuracy asked for) nothing is fitted, the row says why, and the sweep of that shape ends
@@ -34,10 +34,10 @@ from ..errors import InvalidArgumentError, ShspecError
 from ..galerkin.log_model import LogHarmonicModel
 from ..inverse import FitOptions, fit
 from ..inverse.output import surface_record
-from ..inverse.surface_plan import plan_surface_fit
+from ..fitting.surface_plan import plan_surface_fit
 from ..mesh import MeshModel, cmcf, star_surface
 from ..sphere.evaluate import sample_harmonic
-from ..targets import mesh_target, refined_target
+from ..fitting.targets import mesh_target, refined_target
 from .base import Experiment, Finding, register
 from .common import figure, save_figure
 from .fitting import Progress, single_threaded

@@ -324,7 +324,7 @@ class HarmonicModel(SpectralModel):
         """The smallest basis degree Lb' < Lb on which the first ``numeig`` eigenvalues of a reference ρ of degree
         ``level`` agree with those on Lb to ``tol`` (relative), or None if only Lb does.
 
-        The reference is the planner's (:func:`~shspec.inverse.planning.plan_numeig`): a random centred ρ (seed 0,
+        The reference is the planner's (:func:`~shspec.fitting.numeig_plan.plan_numeig`): a random centred ρ (seed 0,
         amplitude 0.2) of the law of a fit's random starts, so that the choice depends on the stage only, not on
         the start.  Bisection from the floor (Lb' + 1)² ≥ 1.5·numeig (:func:`~shspec.galerkin.truncation.
         basis_degree_for`); the agreement grows with Lb'.  An early stage of a degree ramp matches few eigenvalues,

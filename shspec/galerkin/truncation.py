@@ -296,7 +296,7 @@ def _order_block(plm: np.ndarray, m: int, lo: int, hi: int) -> tuple[np.ndarray,
 
 def basis_degree_for(numeig: int, lmax_factor: int) -> int:
     """The smallest basis degree Lb ≥ La with (Lb + 1)² ≥ 1.5·K: the floor below which K eigenvalues of ρ of degree
-    La are not resolved (:func:`~shspec.inverse.planning.converged_basis_degree` scans upwards from it)."""
+    La are not resolved (:func:`~shspec.fitting.numeig_plan.converged_basis_degree` scans upwards from it)."""
     numeig = check_int(numeig, "numeig", minimum=2)
     lmax_factor = check_int(lmax_factor, "lmax_factor", minimum=0)
     return max(int(np.ceil(np.sqrt(1.5 * numeig))) - 1, lmax_factor)

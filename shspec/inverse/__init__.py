@@ -1,8 +1,8 @@
 """The inverse solver: recover ρ (or per-vertex factors) from a Laplace–Beltrami spectrum.
 
 It sees a discretization only through :class:`~shspec.spectral_model.SpectralModel`, and what it fits through a
-:class:`~shspec.targets.Target` (built by :mod:`shspec.targets`, whose builders are re-exported here).  Pipeline: a :class:`Target`
-(spectrum, and the truth when known) → :func:`fit` with :class:`FitOptions` (optimizer, weights, regularizer,
+:class:`Target` (built by :mod:`shspec.fitting`, which also plans a fit: :func:`shspec.fitting.prepare_fit`).
+Pipeline: a :class:`Target` (spectrum, and the truth when known) → :func:`fit` with :class:`FitOptions` (optimizer, weights, regularizer,
 schedule of :class:`Stage` s, starts) over a :class:`~shspec.inverse.parametrization.Parametrization` of the
 model's parameters → :class:`FitResult` (every start, the distinct local solutions; :func:`write_result` saves
 result.h5, summary.json and the figures) → :func:`align` against the truth (Möbius centering, best element of O(3)).
@@ -17,11 +17,9 @@ from .output import summary, write_result
 from .parametrization import Parametrization
 from .results import FitResult, StartResult
 from .schedule import Stage, default_schedule, degree_ramp, numeig_ramp, parse_schedule
-from ..targets import (BLOB_HARMONIC, Target, blob_factor, estimate_area, harmonic_target, mesh_target, parse_target,
-                      read_spectrum, spectrum_target)
+from .target import Target, estimate_area
 
 __all__ = ["Alignment", "align", "load_result_summary", "save_result", "Objective", "eigenvalue_weights",
            "relative_residual", "summary", "write_result", "distinct_solutions", "fit", "FitOptions", "FitResult", "Stage", "StartResult",
-           "parse_schedule", "Parametrization", "default_schedule", "numeig_ramp", "degree_ramp", "BLOB_HARMONIC",
-           "Target", "blob_factor", "estimate_area", "harmonic_target", "mesh_target", "parse_target",
-           "read_spectrum", "spectrum_target"]
+           "parse_schedule", "Parametrization", "default_schedule", "numeig_ramp", "degree_ramp", "Target",
+           "estimate_area"]

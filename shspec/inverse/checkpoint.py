@@ -27,7 +27,7 @@ from .._version import __version__
 from ..atomic import atomic_output
 from ..errors import CheckpointError
 from ..spectral_model import SpectralModel
-from ..targets import Target
+from .target import Target
 from .options import FitOptions
 from .problem import StartProgress
 from .results import StartResult
@@ -328,8 +328,9 @@ def save_result(path, result) -> Path:
             t.attrs["area"] = result.target.area
         if result.target.truth is not None:
             t.create_dataset("truth", data=result.target.truth.coefficients)
-        if result.target.factors is not None:
-            t.create_dataset("factors", data=result.target.factors)
+        samples = result.target.factor_samples()
+        if samples is not None:
+            t.create_dataset("factors", data=samples[2])
         g = f.create_group("starts")
         for r in result.starts:
             _write_start(g.create_group(str(r.index)), r)

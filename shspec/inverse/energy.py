@@ -33,7 +33,7 @@ def eigenvalue_weights(target, kind: str = "relative", errors=None) -> np.ndarra
         target's ``errors`` σ are given (E is then half its χ²); "absolute": w_i = 1.  λ₀ = 0 gets weight 0 either
         way: it is 0 for every metric.
     errors : (k,) array, optional
-        The target's absolute one-sigma errors (:attr:`~shspec.targets.Target.errors`; entry 0 ignored).
+        The target's absolute one-sigma errors (:attr:`~shspec.inverse.Target.errors`; entry 0 ignored).
 
     Returns
     -------

@@ -29,7 +29,8 @@ from .problem import FitProblem, StartProgress
 from .progress import FitDisplay
 from .race import ABANDONED, RaceBoard, RaceBound, best_success, race_outcome, race_round, won_round
 from .results import FitResult, StartResult
-from ..targets import Target
+from .prepared import PreparedFit
+from .target import Target
 from ..threads import reproducible_call
 
 __all__ = ["fit", "distinct_solutions"]
@@ -186,14 +187,16 @@ def _collect_interrupted(executor: Executor, running: set, finished: list, displ
 
 
 @reproducible_call
-def fit(target: Target, model: SpectralModel, options: FitOptions | None = None, *, resume: bool = False,
-        init=None, executor: Executor | None = None) -> FitResult:
+def fit(target: Target | PreparedFit, model: SpectralModel | None = None, options: FitOptions | None = None, *,
+        resume: bool = False, init=None, executor: Executor | None = None) -> FitResult:
     """Fit the parameters of ``model`` to the spectrum of ``target`` from several random starts.
 
     Parameters
     ----------
-    target : Target
-        The target spectrum (k eigenvalues; stages may use fewer).
+    target : Target or PreparedFit
+        The target spectrum (k eigenvalues; stages may use fewer); or a fit made ready, such as the plan of
+        :func:`shspec.fitting.prepare_fit`, which brings its target, model, options and start (then give only
+        ``resume`` and ``executor``).
     model : SpectralModel
         The discretization: its parameters, gauge, levels and regularizer (see :mod:`shspec.spectral_model`).
     options : FitOptions, optional
@@ -241,10 +244,19 @@ def fit(target: Target, model: SpectralModel, options: FitOptions | None = None,
     Examples
     --------
     >>> from shspec.galerkin import HarmonicModel
-    >>> from shspec.inverse import FitOptions, blob_factor, fit, harmonic_target
+    >>> from shspec.inverse import FitOptions, fit
+    >>> from shspec.fitting import blob_factor, harmonic_target
     >>> target = harmonic_target(blob_factor(), lmax=12, numeig=40)
     >>> result = fit(target, HarmonicModel(12, 6), FitOptions(starts=1))  # doctest: +SKIP
     """
+    if isinstance(target, PreparedFit):
+        if model is not None or options is not None or init is not None:
+            raise InvalidArgumentError("fit(plan) runs the plan's own model, options and start: give it only resume "
+                                       "and executor")
+        return target.run(fit, resume=resume, executor=executor)
+    if model is None:
+        raise InvalidArgumentError("fit(target, model, options) needs the model to fit; or plan the whole fit with "
+                                   "shspec.fitting.prepare_fit and run fit(plan)")
     options = check_options(options, FitOptions)
     if isinstance(executor, SerialExecutor):
         executor = None  # the same starts, with the checkpoints inside them that only a run here writes

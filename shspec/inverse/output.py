@@ -18,7 +18,6 @@ import numpy as np
 
 from ..atomic import save_figure, write_text
 from ..errors import InvalidArgumentError, NotPositiveError
-from ..mesh.cotan import vertex_areas
 from ..outputs import ensure_directory
 from ..sphere.evaluate import sample_harmonic
 from . import plots
@@ -48,11 +47,11 @@ def surface_record(result: FitResult) -> dict | None:
     logarithms — beside the model's floor, the error of its best approximation of c, and the error bar against c,
     √(floor² + bar²) with the bar of the target's errors (:class:`~shspec.inverse.identifiability.Identifiability`).
     None otherwise."""
-    target, model = result.target, result.model
-    if target.sphere is None or target.factors is None:
+    samples = result.target.factor_samples()
+    if samples is None:
         return None
-    points, weights, c = target.sphere.vertices, vertex_areas(target.sphere), np.asarray(target.factors, float)
-    best = model.approximation(points, weights, c)
+    points, weights, c = samples
+    best = result.model.approximation(points, weights, c)
     if best is None:
         return None
     out = {"floor": best[1], "truth_range": [float(c.min()), float(c.max())]}
@@ -109,6 +108,7 @@ def summary(result: FitResult) -> dict:
     surface = surface_record(result)
     if surface is not None:
         out["surface"] = surface
+    out.update(result.plan)
     return out
 
 

@@ -20,7 +20,7 @@ from ..checks import finite_array
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..parallel import usable_cores
 from ..spectral_model import SpectralModel
-from ..targets import Target
+from .target import Target
 from .energy import Objective, eigenvalue_weights
 from .options import FitOptions, fits_area
 from .parametrization import Parametrization

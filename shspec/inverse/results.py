@@ -84,6 +84,9 @@ class FitResult:
         Time spent in the starts, summed over them and over every process of a resumed fit.
     interrupted : bool
         The fit was stopped by Ctrl-C; ``starts`` holds what was done, the best state included.
+    plan : dict
+        What the fit's plan chose and why, JSON-ready (:meth:`shspec.fitting.FitPlan.record`); part of the
+        summary.  Empty for a fit that was not planned.
     """
 
     starts: list
@@ -93,6 +96,7 @@ class FitResult:
     model: object
     seconds: float
     interrupted: bool = False
+    plan: dict = field(default_factory=dict, repr=False)
 
     @property
     def best(self) -> StartResult:

@@ -11,7 +11,7 @@ __all__ = ["BUILTIN_MESHES", "builtin_mesh_path", "resolve_mesh_path"]
 
 #: Names of the shipped meshes (each is ``<name>.obj`` in the package data).
 BUILTIN_MESHES = ("bunny", "bunny_1200", "bunny_600", "spot", "spot_1200", "spot_600",
-                  "blub", "blub_1200", "blub_600")
+                  "blub", "blub_1200", "blub_600", "pebble")
 
 
 def builtin_mesh_path(name: str) -> Path:

@@ -23,7 +23,7 @@ factors) with that of its 4-to-1 midpoint subdivision, on which the eigenvalues 
 converged further: |λ_i − λ_i'| / λ_i estimates the error of λ_i on the mesh (the study's A.2: how many eigenvalues
 a mesh can give).  :func:`trusted_numeig` keeps the eigenvalues whose estimate stays below a tolerance.
 :func:`refined_eigenvalues` gives the spectra of repeated subdivisions, from which
-:func:`~shspec.targets.refined_target` extrapolates.
+:func:`~shspec.fitting.targets.refined_target` extrapolates.
 """
 
 from __future__ import annotations

@@ -4,8 +4,8 @@ Steps (each reported with a status, never faked):
 
 1. cMCF of the target (:func:`~shspec.mesh.cmcf.cmcf`): the sphere mesh and the per-vertex factors c.
 2. The target's cotan spectrum refined by subdivision (Richardson-extrapolated from two subdivisions up to 12,500
-   vertices), with its discretization error (:func:`~shspec.targets.refined_target`)
-   and, unless La and K are given, the plan of a log-ρ fit (:func:`~shspec.inverse.surface_plan.plan_surface_fit`):
+   vertices), with its discretization error (:func:`~shspec.fitting.targets.refined_target`)
+   and, unless La and K are given, the plan of a log-ρ fit (:func:`~shspec.fitting.surface_plan.plan_surface_fit`):
    La, K and Lb from the floor of the basis and the target's errors, and the error they predict.
 3. Spectra, first K eigenvalues: the target's PL spectrum; the sphere carrying c, PL (:class:`MeshModel`) and
    harmonic (log c expanded to degree La, :class:`LogHarmonicModel`: positive by construction, whatever the range
@@ -42,7 +42,7 @@ from ..galerkin.log_model import LogHarmonicModel
 from ..galerkin.truncation import basis_degree_for
 from ..inverse import FitOptions, align, fit
 from ..inverse.output import success_definition, surface_record
-from ..inverse.surface_plan import DEFAULT_ACCURACY, TRUTH_DEGREE, default_numeig, log_floor, plan_surface_fit
+from ..fitting.surface_plan import DEFAULT_ACCURACY, TRUTH_DEGREE, default_numeig, log_floor, plan_surface_fit
 from ..outputs import ensure_directory
 from ..mesh.bridge import fit_harmonic, mesh_band_limit
 from ..mesh.cmcf import CMCFResult, cmcf
@@ -53,7 +53,7 @@ from ..mesh.triangle_mesh import TriangleMesh
 from ..report import validation_markdown
 from ..sphere.evaluate import sample_harmonic
 from ..sphere.rotate import power_spectrum
-from ..targets import mesh_target, refined_target
+from ..fitting.targets import mesh_target, refined_target
 
 __all__ = ["ValidationOptions", "ValidationResult", "validate_target", "write_report", "SPECTRUM_LABELS"]
 
@@ -72,7 +72,7 @@ class ValidationOptions:
     ----------
     numeig : int or None
         Eigenvalues K compared and fitted (λ₀ = 0 included); None: planned (from
-        :func:`~shspec.inverse.surface_plan.default_numeig`).
+        :func:`~shspec.fitting.surface_plan.default_numeig`).
     lmax, lmax_factor : int or None
         Harmonic basis degree Lb and log-ρ degree La; None: planned.
     accuracy : float

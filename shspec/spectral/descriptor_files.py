@@ -1,7 +1,7 @@
 """Spectrum and descriptor files: text that ``numpy.loadtxt`` and ``shspec fit --target spectrum:FILE`` read.
 
 Writing.  Every file is plain text with '#' comment lines on top (what it holds, units, the source): the eigenvalue
-and Shape-DNA files hold one value per line (what :func:`shspec.targets.read_spectrum` reads), the heat
+and Shape-DNA files hold one value per line (what :func:`shspec.spectrum_file.read_spectrum` reads), the heat
 trace two columns t, Z(t), the heat kernel signature one row per vertex and one column per time (the times in the
 header).
 

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import shspec.cli.fit as fit_cli
+import shspec.fitting.plan as fit_plan
 from shspec.cli import build_parser, main
 from shspec.galerkin import HarmonicModel
 from shspec.inverse import FitOptions
@@ -26,8 +27,8 @@ def pools(monkeypatch):
         asked.append((workers, scheduler))
         return SerialExecutor()
 
-    monkeypatch.setattr(fit_cli, "make_executor", make_executor)
-    monkeypatch.setattr(fit_cli, "usable_cores", lambda: 3)
+    monkeypatch.setattr(fit_plan, "make_executor", make_executor)
+    monkeypatch.setattr(fit_plan, "usable_cores", lambda: 3)
     return asked
 
 
@@ -51,7 +52,7 @@ def test_the_starts_run_on_one_process_per_start_and_core_by_default(pools, tmp_
                          (["--starts", "2", "--workers", "5"], (5, None)),
                          (["--scheduler", "tcp://h:1"], (None, "tcp://h:1"))):
         args = build_parser().parse_args([*tiny, *extra, "--out", str(tmp_path / "x")])
-        assert fit_cli._where(args, FitOptions(starts=args.starts)) == where, extra
+        assert tuple(fit_plan._where(fit_cli._request(args)).values()) == where, extra
     assert 1 <= usable_cores()
 
 

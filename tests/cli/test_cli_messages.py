@@ -10,7 +10,7 @@ from shspec.cli import build_parser, main
 from shspec.errors import CacheLocationError, InvalidArgumentError, NotPositiveError
 from shspec.mesh.eigen import mesh_spectrum
 from shspec.mesh.shapes import icosphere
-from shspec.targets import Target
+from shspec.fitting.targets import Target
 
 
 @pytest.mark.parametrize("rho", [np.zeros(4), -np.ones(1)])
@@ -108,7 +108,8 @@ def test_a_failed_embedding_says_why(tmp_path, capsys, monkeypatch):
 
 def test_a_nan_starting_point_is_named_as_nan_not_as_a_shape():
     from shspec.galerkin import HarmonicModel
-    from shspec.inverse import FitOptions, blob_factor, fit, harmonic_target
+    from shspec.inverse import FitOptions, fit
+    from shspec.fitting import blob_factor, harmonic_target
 
     model = HarmonicModel(6, 6)
     init = np.zeros(model.nparams)
@@ -119,12 +120,12 @@ def test_a_nan_starting_point_is_named_as_nan_not_as_a_shape():
 
 
 def test_a_mistyped_target_is_named_before_any_planning(tmp_path, capsys, monkeypatch):
-    import shspec.cli.fit as cli_fit
+    import shspec.fitting.plan as fit_plan
 
     def no_planning(*args, **kwargs):  # planning K for La = 15 takes a minute: a typo must not wait for it
         raise AssertionError("planned before the target was checked")
 
-    monkeypatch.setattr(cli_fit, "plan_fit", no_planning)
+    monkeypatch.setattr(fit_plan, "plan_fit", no_planning)
     for target, words in (("blobb", "unknown target 'blobb'"), ("mesh:nonexistent_mesh", "no such file"),
                           ("spectrum:" + str(tmp_path / "none.txt"), "no such file")):
         assert main(["fit", "--target", target, "--out", str(tmp_path / "out")]) == 1

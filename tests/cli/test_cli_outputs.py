@@ -20,7 +20,8 @@ import pytest
 from shspec.cli import main
 from shspec.errors import CheckpointError, OutputError
 from shspec.galerkin import HarmonicModel
-from shspec.inverse import FitOptions, blob_factor, fit, harmonic_target
+from shspec.inverse import FitOptions, fit
+from shspec.fitting import blob_factor, harmonic_target
 from shspec.inverse.checkpoint import save_checkpoint
 from shspec.inverse.output import write_result
 

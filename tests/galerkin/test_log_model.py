@@ -12,7 +12,7 @@ from shspec.galerkin.model import rotation_generators
 from shspec.inverse import FitOptions, align, fit
 from shspec.sphere.grid import evaluate_on_grid, expand_grid, glq_grid
 from shspec.sphere.random import random_coefficients
-from shspec.targets import Target
+from shspec.fitting.targets import Target
 
 L = np.repeat(np.arange(6), 2 * np.arange(6) + 1)
 EXACT = L * (L + 1.0)

@@ -10,8 +10,8 @@ import pytest
 
 from shspec import HarmonicModel
 from shspec.errors import CheckpointError
-from shspec.inverse import (FitOptions, FitResult, Stage, StartResult, blob_factor, fit, harmonic_target,
-                            load_result_summary, save_result)
+from shspec.inverse import FitOptions, FitResult, Stage, StartResult, fit, load_result_summary, save_result
+from shspec.fitting import blob_factor, harmonic_target
 from shspec.inverse import optimize as optimize_module
 
 

@@ -11,7 +11,7 @@ import pytest
 from shspec import HarmonicModel
 from shspec.errors import CheckpointError
 from shspec.inverse import FitOptions, Stage, fit
-from shspec.inverse import blob_factor, harmonic_target
+from shspec.fitting.targets import blob_factor, harmonic_target
 from shspec.inverse import optimize as optimize_module
 from shspec.inverse.checkpoint import _IGNORED
 

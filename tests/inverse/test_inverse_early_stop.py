@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from shspec import HarmonicModel
-from shspec.inverse import FitOptions, fit, harmonic_target
+from shspec.inverse import FitOptions, fit
+from shspec.fitting import harmonic_target
 from shspec.inverse import optimize as optimize_module
 from shspec.inverse.checkpoint import fingerprint, save_checkpoint
 from shspec.inverse.race import ABANDONED, race_outcome

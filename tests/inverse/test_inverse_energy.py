@@ -277,7 +277,7 @@ def test_identifiability_by_numeig_equals_one_analysis_per_k():
 
 def test_plan_numeig_recommends_the_smallest_k_within_the_accuracy():
     from shspec.galerkin.truncation import basis_degree_for
-    from shspec.inverse.planning import candidate_numeigs, plan_numeig
+    from shspec.fitting.numeig_plan import candidate_numeigs, plan_numeig
 
     plan = plan_numeig(4, noise=1e-8, accuracy=1e-6)
     ks = [r.numeig for r in plan.rows]
@@ -302,7 +302,7 @@ def test_plan_numeig_recommends_the_smallest_k_within_the_accuracy():
 
 
 def test_plan_numeig_with_a_floor_on_k_converges_the_basis_for_that_k():
-    from shspec.inverse.planning import converged_basis_degree, plan_numeig
+    from shspec.fitting.numeig_plan import converged_basis_degree, plan_numeig
 
     plain = plan_numeig(4, noise=1e-8, accuracy=1e-6)
     raised = plan_numeig(4, noise=1e-8, accuracy=1e-6, min_numeig=plain.numeig + 30)
@@ -322,7 +322,7 @@ def test_converged_basis_degree_against_a_much_larger_basis():
     smallest that does by its own measure, and is far above the (Lb + 1)^2 >= 1.5 K floor for a rough rho: there the
     floor leaves the eigenvalues more than 1e-4 off."""
     from shspec.galerkin.truncation import basis_degree_for
-    from shspec.inverse.planning import converged_basis_degree
+    from shspec.fitting.numeig_plan import converged_basis_degree
 
     a = random_centred_coefficients(0, 6, 0.2)
     lb, change = converged_basis_degree(a, 64, tol=1e-6)

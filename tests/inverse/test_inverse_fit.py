@@ -17,7 +17,8 @@ import pytest
 from shspec import ConformalFactor, HarmonicModel
 from shspec.errors import InvalidArgumentError
 from shspec.cli import main
-from shspec.inverse import FitOptions, Stage, align, blob_factor, default_schedule, fit, harmonic_target
+from shspec.inverse import FitOptions, Stage, align, default_schedule, fit
+from shspec.fitting import blob_factor, harmonic_target
 from shspec.sphere.random import random_centred_coefficients
 from shspec.inverse import optimize as optimize_module
 from shspec.inverse.energy import Objective, eigenvalue_weights
@@ -296,7 +297,7 @@ def test_positivity_safeguard_never_crashes():
 
 def test_pl_recovery_error_grows_with_amplitude():
     """The study's Section 3.2.1: star surfaces r = 1 + p|Y_3^3| are harder to hear as p grows."""
-    from shspec.inverse import mesh_target
+    from shspec.fitting import mesh_target
     from shspec.mesh.model import MeshModel
     from shspec.mesh.shapes import star_surface
 
@@ -550,7 +551,7 @@ def test_geodesic_acceleration_shortens_the_crawl_of_lm():
 def test_cli_fit_without_numeig_plans_k_and_lmax(tmp_path, capsys):
     """No --numeig: the fit takes the planned K and Lb, says so and writes the plan to summary.json.  The plan
     takes 2.5 eigenvalues per coefficient where identifiability would take fewer."""
-    from shspec.inverse.planning import SEARCH_NUMEIG_FACTOR, plan_fit, plan_numeig
+    from shspec.fitting.numeig_plan import SEARCH_NUMEIG_FACTOR, plan_fit, plan_numeig
 
     truth = random_centred_coefficients(4, 3, 0.2)
     spectrum_file = tmp_path / "spectrum.txt"
@@ -558,7 +559,7 @@ def test_cli_fit_without_numeig_plans_k_and_lmax(tmp_path, capsys):
     out = tmp_path / "fit"
     assert main(["fit", "--target", f"spectrum:{spectrum_file}", "--lmax-factor", "3", "--starts", "1",
                  "--max-iter", "3", "--basin-hops", "0", "--schedule", "none", "--out", str(out)]) == 0
-    assert "--numeig not given: K = " in capsys.readouterr().err
+    assert "numeig = 40: K = " in capsys.readouterr().err  # the plan, with its reason
     summary = json.loads((out / "summary.json").read_text())
     identified = plan_numeig(3, random_centred_coefficients(0, 3, 0.2), noise=1e-13, accuracy=1e-8,
                              basis_tol=1e-10).numeig

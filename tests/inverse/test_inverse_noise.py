@@ -14,7 +14,7 @@ from shspec.inverse import FitOptions, Stage, align, fit
 from shspec.inverse.energy import eigenvalue_weights
 from shspec.inverse.problem import consistent_with_errors
 from shspec.sphere.random import random_centred_coefficients
-from shspec.targets import Target
+from shspec.fitting.targets import Target
 
 SIGMA = 1e-6
 
@@ -84,7 +84,7 @@ def test_cli_takes_the_error_column_of_a_spectrum_file_or_noise(noisy, tmp_path)
 def test_a_harmonic_fit_of_a_mesh_spectrum_fits_to_the_mesh_discretization_error(tmp_path, capsys):
     from shspec.mesh.refine import eigenvalue_errors
     from shspec.mesh.shapes import star_surface
-    from shspec.targets import RICHARDSON_FACTOR, mesh_target, with_discretization_errors
+    from shspec.fitting.targets import RICHARDSON_FACTOR, mesh_target, with_discretization_errors
 
     target = with_discretization_errors(mesh_target(star_surface(3, 3, 0.3, 2), 10, 25, 4))
     _, rel = eigenvalue_errors(target.mesh, 25)

@@ -6,7 +6,8 @@ import io
 import numpy as np
 
 from shspec.galerkin import HarmonicModel
-from shspec.inverse import FitOptions, Stage, blob_factor, fit, harmonic_target
+from shspec.inverse import FitOptions, Stage, fit
+from shspec.fitting import blob_factor, harmonic_target
 from shspec.inverse.progress import FitDisplay
 from shspec.inverse.results import StartResult
 

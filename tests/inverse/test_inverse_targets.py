@@ -11,7 +11,7 @@ from shspec.errors import InvalidArgumentError
 from shspec.sphere.rotate import mirror_coefficients, power_spectrum
 from shspec.inverse.schedule import Stage, parse_schedule
 from shspec.inverse.schedule import numeig_ramp
-from shspec.targets import (Target, blob_factor, estimate_area, parse_target, read_spectrum)
+from shspec.fitting.targets import (Target, blob_factor, estimate_area, parse_target, read_spectrum)
 
 
 def test_blob_is_centred_positive_asymmetric():
@@ -47,7 +47,7 @@ def test_read_spectrum_formats(tmp_path, fmt):
         path.write_text(json.dumps({"eigenvalues": lam.tolist()}))
     np.testing.assert_array_equal(read_spectrum(path), [0.0, *lam])
     t = parse_target(f"spectrum:{path}", lmax=4, numeig=5, lmax_factor=2)
-    assert t.area is None and t.source == "file"
+    assert t.area is None and t.source == "spectrum" and type(t) is Target
 
 
 def test_bad_targets(tmp_path):
@@ -77,7 +77,7 @@ def test_schedule_syntax():
 def test_read_spectrum_takes_the_last_column_and_names_bad_values(tmp_path):
     import warnings
 
-    from shspec.inverse import parse_target, read_spectrum
+    from shspec.fitting import parse_target, read_spectrum
 
     two = tmp_path / "two.txt"  # what `shspec mesh-spectrum M > two.txt` prints: index and eigenvalue
     two.write_text("    0  0\n    1  2.5\n    2  2.5\n    3  7\n")

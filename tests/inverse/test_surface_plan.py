@@ -11,13 +11,13 @@ from shspec.cli import main
 from shspec.errors import InvalidArgumentError
 from shspec.galerkin import LogHarmonicModel
 from shspec.galerkin.truncation import basis_degree_for
-from shspec.inverse.surface_plan import log_floor, plan_surface_fit
+from shspec.fitting.surface_plan import log_floor, plan_surface_fit
 from shspec.mesh.model import MeshModel
 from shspec.mesh.refine import refined_eigenvalues, subdivision_eigenvalues
 from shspec.mesh.shapes import icosphere, star_surface
 from shspec.sphere.grid import evaluate_on_grid, glq_grid
 from shspec.sphere.random import random_coefficients
-from shspec.targets import Target, mesh_target, refined_target, refinement_levels, subdivision_changes
+from shspec.fitting.targets import MeshTarget, Target, mesh_target, refined_target, refinement_levels, subdivision_changes
 
 
 def test_the_log_models_error_metric_is_the_relative_l2_change_of_rho():
@@ -109,8 +109,7 @@ def test_factors_spanning_decades_are_diagnosed_before_fitting(tmp_path, capsys)
     factors = np.exp(9 * z ** 12)  # a narrow cap 8000 times larger than the rest
     spectrum = MeshModel(sphere).spectrum(factors, 60).eigenvalues
     spectrum[0] = 0.0
-    target = Target("cap", spectrum, errors=np.r_[0.0, 1e-3 * spectrum[1:]], sphere=sphere, factors=factors,
-                    source="pl")
+    target = MeshTarget("cap", spectrum, errors=np.r_[0.0, 1e-3 * spectrum[1:]], sphere=sphere, factors=factors)
     plan = plan_surface_fit(target, accuracy=0.05)
     assert plan.beyond_basis and not plan.feasible
     assert plan.floor > 0.05 and plan.factor_range[1] / plan.factor_range[0] > 1000
@@ -119,8 +118,8 @@ def test_factors_spanning_decades_are_diagnosed_before_fitting(tmp_path, capsys)
     err = capsys.readouterr().err
     assert "cannot reach" in err and "--model mesh" in err and not (tmp_path / "spot" / "summary.json").exists()
     with pytest.raises(InvalidArgumentError, match="no errors"):
-        plan_surface_fit(Target("t", spectrum, sphere=sphere, factors=factors))
-    with pytest.raises(InvalidArgumentError, match="no cMCF factors"):
+        plan_surface_fit(MeshTarget("t", spectrum, sphere=sphere, factors=factors))
+    with pytest.raises(InvalidArgumentError, match="needs a MeshTarget"):
         plan_surface_fit(Target("t", spectrum, errors=target.errors))
 
 

@@ -18,7 +18,7 @@ from shspec.mesh.model import MeshModel, dirichlet_root
 from shspec.mesh.shapes import blob, icosphere
 from shspec.sphere.evaluate import sample_harmonic
 from shspec.sphere.random import random_coefficients
-from shspec.targets import Target, mesh_target
+from shspec.fitting.targets import Target, mesh_target
 
 
 def test_dirichlet_root_squares_to_the_cotan_form():
@@ -137,7 +137,7 @@ def test_factors_spanning_1e4_recovered_from_their_own_spectrum():
     model = MeshModel(sphere, transform="exp")
     lam = model.spectrum(truth, n - 1).eigenvalues
     lam[0] = 0.0
-    target = Target("synthetic", lam, area=float(truth @ model.vertex_areas), source="cmcf")
+    target = Target("synthetic", lam, area=float(truth @ model.vertex_areas))
     start = s_true + 0.003 * np.random.default_rng(3).standard_normal(n)
     # Levenberg–Marquardt: the quadratic final convergence of a zero-residual problem (the mesh default is L-BFGS)
     result = fit(target, model, FitOptions(optimizer="lm", starts=1, schedule=(), max_iter=60, basin_hops=0),

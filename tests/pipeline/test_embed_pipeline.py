@@ -141,8 +141,8 @@ def test_render_draws_every_face_coloured_by_the_values():
 
 def test_recursive_refinement_keeps_residual_and_distance_and_bounds_the_spectral_error():
     """The study's Section 3.2.3 on a 162-vertex blob: fit, re-embed, fit again on the re-embedded surface's sphere."""
-    from shspec.inverse import mesh_target
-    from shspec.pipeline import RecursiveOptions, recursive_fit
+    from shspec.fitting import mesh_target
+    from shspec.fitting import RecursiveOptions, recursive_fit
 
     target = mesh_target(blob(2), lmax=8, numeig=40, lmax_factor=4)
     result = recursive_fit(target, options=RecursiveOptions(passes=2))

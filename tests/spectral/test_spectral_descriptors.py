@@ -7,7 +7,7 @@ import pytest
 import scipy.linalg as sla
 
 from shspec.errors import InvalidArgumentError
-from shspec.targets import read_spectrum
+from shspec.fitting.targets import read_spectrum
 from shspec.mesh.cotan import cotan_stiffness, mass_matrix
 from shspec.mesh.eigen import mesh_spectrum
 from shspec.mesh.shapes import blob

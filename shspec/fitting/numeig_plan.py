@@ -42,8 +42,8 @@ from ..galerkin.truncation import DEFAULT_TRUNCATION_TOL, basis_degree_for
 from ..sphere.factor import ConformalFactor
 from ..sphere.random import random_centred_coefficients
 from ..threads import reproducible_call
-from .identifiability import identifiability_by_numeig
-from .options import FitOptions
+from ..inverse.identifiability import identifiability_by_numeig
+from ..inverse.options import FitOptions
 
 __all__ = ["NumeigPlan", "converged_basis_degree", "candidate_numeigs", "plan_numeig", "plan_fit", "PLANNED_ACCURACY"]
 

@@ -160,7 +160,7 @@ def recursive_fit(target, sphere: TriangleMesh | None = None, options: Recursive
     opt = check_options(options, RecursiveOptions)
     if not isinstance(target, Target):
         raise InvalidArgumentError(f"target must be a Target, got {type(target).__name__}")
-    sphere = sphere if sphere is not None else target.sphere
+    sphere = sphere if sphere is not None else getattr(target, "sphere", None)
     if not isinstance(sphere, TriangleMesh):
         raise InvalidArgumentError("a sphere mesh is needed: pass one, or a target built from a mesh")
     say = log if log is not None else (lambda _msg: None)
@@ -179,7 +179,7 @@ def recursive_fit(target, sphere: TriangleMesh | None = None, options: Recursive
         lam = mesh_spectrum(emb.mesh, k, whole_multiplets=False).eigenvalues
         spec = rms_relative_residual(lam, lam_star)
         haus = cham = None
-        if isinstance(target.mesh, TriangleMesh):
+        if isinstance(getattr(target, "mesh", None), TriangleMesh):
             d = surface_distance(emb.mesh, target.mesh)
             haus, cham = d.hausdorff_relative, d.chamfer_relative
         passes.append(RefinementPass(sphere=sphere, factors=c, embedding=emb, fit_residual=float(best.relative_residual),

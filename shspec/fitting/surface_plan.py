@@ -42,8 +42,8 @@ from ..galerkin.log_model import LogHarmonicModel, log_expansion
 from ..galerkin.truncation import basis_degree_for
 from ..mesh.bridge import mesh_band_limit
 from ..mesh.cotan import vertex_areas
-from ..targets import Target
-from .identifiability import identifiability_by_numeig
+from .targets import MeshTarget
+from ..inverse.identifiability import identifiability_by_numeig
 
 __all__ = ["SurfacePlan", "PlanRow", "log_floor", "plan_surface_fit", "default_numeig", "DEFAULT_ACCURACY",
            "TRUTH_DEGREE"]
@@ -174,7 +174,7 @@ class SurfacePlan:
                 f"{self.predicted:.2g}, of which the floor is {self.floor:.2g}; {need}; fit per-vertex factors "
                 "instead (--model mesh)")
 
-    def fitted_target(self, target: Target) -> Target:
+    def fitted_target(self, target: MeshTarget) -> MeshTarget:
         """``target`` cut to the plan's K, with :attr:`fit_errors` as its errors."""
         return dataclasses.replace(target.first(self.numeig), errors=self.fit_errors)
 
@@ -224,15 +224,15 @@ def _basis(u: np.ndarray, la: int, tol: np.ndarray) -> tuple[int, np.ndarray]:
     return lb, previous
 
 
-def plan_surface_fit(target: Target, *, accuracy: float = DEFAULT_ACCURACY, candidates=None,
+def plan_surface_fit(target: MeshTarget, *, accuracy: float = DEFAULT_ACCURACY, candidates=None,
                      numeigs=None) -> SurfacePlan:
     """Plan a log-ρ fit of a mesh target with errors (module notes).
 
     Parameters
     ----------
-    target : Target
+    target : MeshTarget
         A mesh target (``target.sphere`` and ``target.factors``: its cMCF) whose ``errors`` are set (e.g.
-        :func:`~shspec.targets.with_discretization_errors`), K₀ eigenvalues.
+        :func:`~shspec.fitting.targets.with_discretization_errors`), K₀ eigenvalues.
     accuracy : float
         Relative L2 error of ρ asked for, > 0.
     candidates : sequence of int, optional
@@ -249,11 +249,9 @@ def plan_surface_fit(target: Target, *, accuracy: float = DEFAULT_ACCURACY, cand
     InvalidArgumentError
         For a target without cMCF factors or errors, or too few eigenvalues for any candidate.
     """
-    if not isinstance(target, Target):
-        raise InvalidArgumentError(f"expected a Target, got {type(target).__name__}")
-    if target.sphere is None or target.factors is None:
-        raise InvalidArgumentError(f"the target {target.name!r} has no cMCF factors: plan_surface_fit needs a mesh "
-                                   "target")
+    if not isinstance(target, MeshTarget):
+        raise InvalidArgumentError(f"plan_surface_fit needs a MeshTarget (a mesh's spectrum with its cMCF factors), "
+                                   f"got {type(target).__name__}")
     if target.errors is None:
         raise InvalidArgumentError(f"the target {target.name!r} has no errors: give them (with_discretization_errors "
                                    "or with_noise) before planning by them")

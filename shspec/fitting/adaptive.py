@@ -22,7 +22,7 @@ from ..inverse.results import FitResult
 from ..mesh.model import REGULARIZER_KINDS, MeshModel
 from ..mesh.refine import mesh_quality, refine_sphere
 from ..mesh.shapes import icosphere
-from ..targets import Target
+from ..inverse.target import Target
 
 __all__ = ["AdaptiveOptions", "AdaptiveStage", "AdaptiveResult", "adaptive_fit", "stage_sizes"]
 
@@ -131,7 +131,8 @@ def adaptive_fit(target: Target, options: AdaptiveOptions | None = None, *, log=
         raise InvalidArgumentError(f"target must be a Target, got {type(target).__name__}")
     say = log if log is not None else (lambda _msg: None)
     sphere = icosphere(opt.subdivisions)
-    final = opt.nvertices or (target.sphere.nvertices if target.sphere is not None else sphere.nvertices)
+    own = getattr(target, "sphere", None)  # a mesh target's cMCF sphere sets the final size
+    final = opt.nvertices or (own.nvertices if own is not None else sphere.nvertices)
     sizes = stage_sizes(sphere.nvertices, max(final, sphere.nvertices), opt.growth)
     stages, init, result = [], None, None
     for i, n in enumerate(sizes):

@@ -1,13 +1,9 @@
-"""What a fit is aimed at: a target spectrum, and when known the truth it came from.
+"""The builders of targets: from a harmonic ρ, from a mesh (its :class:`MeshTarget`), from a spectrum file, and from
+the command-line syntax ``blob | star:l,m,p | mesh:PATH | spectrum:FILE`` (:func:`parse_target`).
 
-Targets are built from a harmonic ρ (the built-in :func:`blob_factor` or any coefficients), from a mesh (its cMCF
-factors are the truth; the target is its PL spectrum or the harmonic spectrum of its expanded factors), or from a
-spectrum file.  :func:`parse_target` reads the command-line syntax ``blob | star:l,m,p | mesh:PATH | spectrum:FILE``.
-
-Area.  A spectrum fixes the area through Weyl's law; :func:`estimate_area` fits the counting function
-N(λ) ≈ Aλ/(4π) + c to the target, which is exact on the round sphere (N = (l+1)² at the top of each multiplet, l² + 1
-at its bottom: their mean is λ + 1 + ... ) and good to a few per cent on smooth surfaces.  When the truth is known
-its area is used instead.
+A mesh's cMCF factors are its truth; its target is its PL spectrum, the PL spectrum of its cMCF sphere carrying the
+factors, or the harmonic spectrum of the factors' expansion (:data:`TARGET_SOURCES`).  A mesh's eigenvalues carry
+their discretization error, which :func:`refined_target` estimates from the mesh's 4-to-1 subdivisions.
 """
 
 from __future__ import annotations
@@ -20,23 +16,24 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.ndimage import maximum_filter1d
 
-from .checks import check_float, check_int, real_array
-from .errors import InvalidArgumentError
-from .galerkin.model import HarmonicModel
-from .mesh.bridge import fit_harmonic, mesh_band_limit
-from .mesh.cmcf import CMCFResult, cmcf
-from .mesh.cotan import cotan_stiffness, vertex_areas
-from .mesh.eigen import eigenpairs, mesh_spectrum
-from .mesh.builtin import resolve_mesh_path
-from .mesh.mesh_files import load_mesh
-from .mesh.refine import refined_eigenvalues
-from .mesh.shapes import star_surface
-from .mesh.triangle_mesh import TriangleMesh
-from .sphere.factor import ConformalFactor
-from .sphere.harmonics import flat_index, ncoeffs
-from .spectrum_file import read_spectrum, read_spectrum_file
+from ..checks import check_int, real_array
+from ..errors import InvalidArgumentError
+from ..galerkin.model import HarmonicModel
+from ..inverse.target import Target, estimate_area
+from ..mesh.bridge import fit_harmonic, mesh_band_limit
+from ..mesh.cmcf import CMCFResult, cmcf
+from ..mesh.cotan import cotan_stiffness, vertex_areas
+from ..mesh.eigen import eigenpairs, mesh_spectrum
+from ..mesh.builtin import resolve_mesh_path
+from ..mesh.mesh_files import load_mesh
+from ..mesh.refine import refined_eigenvalues
+from ..mesh.shapes import star_surface
+from ..mesh.triangle_mesh import TriangleMesh
+from ..sphere.factor import ConformalFactor
+from ..sphere.harmonics import flat_index, ncoeffs
+from ..spectrum_file import read_spectrum, read_spectrum_file
 
-__all__ = ["BLOB_HARMONIC", "blob_factor", "Target", "harmonic_target", "mesh_target", "spectrum_target",
+__all__ = ["BLOB_HARMONIC", "blob_factor", "Target", "MeshTarget", "harmonic_target", "mesh_target", "spectrum_target",
            "read_spectrum", "estimate_area", "parse_target", "TARGET_SOURCES", "subdivision_spectra",
            "subdivision_changes", "with_discretization_errors", "refined_target", "refinement_levels",
            "RICHARDSON_FACTOR", "REFINED_VERTICES"]
@@ -76,99 +73,51 @@ def blob_factor(lmax: int = 6) -> ConformalFactor:
 
 
 @dataclass(frozen=True)
-class Target:
-    """A target spectrum and what is known about its source.
+class MeshTarget(Target):
+    """The target of a mesh: a :class:`~shspec.inverse.Target` with the mesh's cMCF.
 
     Attributes
     ----------
-    name : str
-    eigenvalues : (k,) array
-        λ*₀ = 0 first, ascending (1/area).
-    area : float or None
-        The true area when known.
-    truth : ConformalFactor or None
-        The true harmonic ρ (for a mesh: its centred cMCF factors expanded to degree La).
+    sphere : TriangleMesh
+        The cMCF sphere, n vertices, vertex i over the mesh's vertex i.
+    factors : (n,) array
+        The per-vertex cMCF factors: the PL truth.
     mesh : TriangleMesh or None
-        The target surface (mesh targets).
-    sphere : TriangleMesh or None
-        Its cMCF sphere, vertex i over the mesh's vertex i (mesh targets).
-    factors : (n,) array or None
-        Its per-vertex cMCF factors (mesh targets): the PL truth.
+        The target surface (None: a target made on the sphere alone, e.g. a synthetic one).
     source : str
-        "harmonic", "pl", "cmcf" (see :data:`TARGET_SOURCES`) or "file".
-    errors : (k,) array or None
-        The target's own error: the absolute one-sigma uncertainty of each eigenvalue (measurement noise, a mesh's
-        discretization error); entry 0 is ignored (λ₀ = 0 exactly).  When known, a fit weighs eigenvalue i by
-        1/σ_i², succeeds when its residuals are consistent with them, and reports the error bar they leave on ρ.
-        None: the eigenvalues are taken as exact (to :attr:`~shspec.inverse.FitOptions.success_tol`).
+        Which spectrum of the mesh the eigenvalues are, one of :data:`TARGET_SOURCES`.
+
+    Examples
+    --------
+    >>> from shspec.fitting import mesh_target
+    >>> from shspec.mesh import load_mesh
+    >>> t = mesh_target(load_mesh("spot_600"), lmax=20, numeig=30, lmax_factor=6)
+    >>> type(t).__name__, t.source, t.numeig, t.sphere.nvertices == t.factors.size
+    ('MeshTarget', 'pl', 30, True)
     """
 
-    name: str
-    eigenvalues: np.ndarray
-    area: float | None = None
-    truth: ConformalFactor | None = None
-    mesh: object = field(default=None, repr=False)
-    sphere: object = field(default=None, repr=False)
-    factors: np.ndarray | None = field(default=None, repr=False)
-    source: str = "harmonic"
-    errors: np.ndarray | None = field(default=None, repr=False)
+    sphere: TriangleMesh = field(default=None, repr=False)
+    factors: np.ndarray = field(default=None, repr=False)
+    mesh: TriangleMesh | None = field(default=None, repr=False)
+    source: str = "pl"
 
     def __post_init__(self):
-        if not isinstance(self.name, str):
-            raise InvalidArgumentError(f"a target's name is a string, got {self.name!r}")
-        lam = real_array(self.eigenvalues, "a target's eigenvalues")
-        if lam.ndim != 1 or lam.size < 2:
-            raise InvalidArgumentError(f"a target needs a (k,) spectrum with k >= 2, got shape {lam.shape}")
-        bad = np.flatnonzero(~np.isfinite(lam))
-        if bad.size:
-            raise InvalidArgumentError(f"a target's eigenvalue {bad[0]} is {lam[bad[0]]}; every one must be finite")
-        if abs(lam[0]) > 1e-8 * lam[-1] or np.any(lam[1:] <= 0) or np.any(np.diff(lam) < -1e-12 * lam[-1]):
-            raise InvalidArgumentError("a target spectrum must start with λ₀ = 0 and ascend through positive values")
-        object.__setattr__(self, "eigenvalues", lam)
-        if self.errors is not None:
-            err = real_array(self.errors, "a target's errors")
-            if err.shape != lam.shape:
-                raise InvalidArgumentError(f"a target's errors must have the shape of its eigenvalues {lam.shape}, got "
-                                           f"{err.shape}")
-            bad = np.flatnonzero(~(np.isfinite(err[1:]) & (err[1:] > 0)))
-            if bad.size:
-                raise InvalidArgumentError(f"the error of eigenvalue {bad[0] + 1} is {err[bad[0] + 1]}; every error "
-                                           "after lambda_0 must be finite and > 0")
-            err = err.copy()
-            err[0] = 0.0
-            object.__setattr__(self, "errors", err)
+        super().__post_init__()
+        if not isinstance(self.sphere, TriangleMesh):
+            raise InvalidArgumentError(f"a mesh target's sphere is a TriangleMesh, got {type(self.sphere).__name__}")
+        c = real_array(self.factors, "a mesh target's factors")
+        if c.shape != (self.sphere.nvertices,) or not np.all(c > 0):
+            raise InvalidArgumentError(f"a mesh target's factors are ({self.sphere.nvertices},) positive values, one "
+                                       f"per vertex of its sphere; got shape {c.shape}")
+        object.__setattr__(self, "factors", c)
+        if self.mesh is not None and not isinstance(self.mesh, TriangleMesh):
+            raise InvalidArgumentError(f"a mesh target's mesh is a TriangleMesh, got {type(self.mesh).__name__}")
+        if self.source not in TARGET_SOURCES:
+            raise InvalidArgumentError(f"a mesh target's source is one of {TARGET_SOURCES}, got {self.source!r}")
 
-    def first(self, k: int) -> "Target":
-        """The target cut to its first ``k`` eigenvalues (and their errors)."""
-        k = check_int(k, "k", minimum=2, maximum=self.numeig)
-        return dataclasses.replace(self, eigenvalues=self.eigenvalues[:k],
-                                   errors=None if self.errors is None else self.errors[:k])
-
-    def with_noise(self, relative: float) -> "Target":
-        """The target with the error σ_i = ``relative``·λ_i of every eigenvalue (``shspec fit --noise``)."""
-        relative = check_float(relative, "the relative noise", positive=True)
-        return dataclasses.replace(self, errors=relative * self.eigenvalues)
-
-    @property
-    def numeig(self) -> int:
-        return self.eigenvalues.size
-
-    def area_estimate(self) -> float:
-        """The true area if known, else Weyl's estimate from the spectrum (:func:`estimate_area`)."""
-        return self.area if self.area is not None else estimate_area(self.eigenvalues)
-
-
-def estimate_area(eigenvalues) -> float:
-    """Area from a spectrum (k,) by least squares on Weyl's law N(λ_n) ≈ Aλ_n/(4π) + c (module notes)."""
-    lam = np.asarray(eigenvalues, dtype=float)
-    if lam.ndim != 1 or lam.size < 4 or np.any(lam[1:] <= 0):
-        raise InvalidArgumentError("estimating the area needs at least 4 eigenvalues, λ₀ = 0 and the rest > 0")
-    n = np.arange(lam.size) + 0.5
-    design = np.stack([lam[1:] / (4 * np.pi), np.ones(lam.size - 1)], 1)
-    coef = np.linalg.lstsq(design, n[1:], rcond=None)[0]
-    if not coef[0] > 0:
-        raise InvalidArgumentError("the spectrum does not grow like Weyl's law; cannot estimate the area")
-    return float(coef[0])
+    def factor_samples(self) -> tuple:
+        """(the sphere's vertices (n, 3), their areas (n,), the cMCF factors (n,))."""
+        return self.sphere.vertices, vertex_areas(self.sphere), self.factors
 
 
 def harmonic_target(rho, lmax: int, numeig: int, *, name: str | None = None) -> Target:
@@ -176,7 +125,7 @@ def harmonic_target(rho, lmax: int, numeig: int, *, name: str | None = None) -> 
     factor = rho if isinstance(rho, ConformalFactor) else ConformalFactor(rho)
     model = HarmonicModel(lmax, factor.lmax)
     lam = model.spectrum(factor, numeig).eigenvalues
-    return Target(name or factor.name, lam, area=factor.area, truth=factor, source="harmonic")
+    return Target(name or factor.name, lam, area=factor.area, truth=factor)
 
 
 def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str = "pl", name: str = "mesh",
@@ -228,8 +177,8 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
         lam[0] = 0.0  # the solver's λ₀ is 0 to rounding; the target's must be exactly 0
     else:
         lam = HarmonicModel(lmax, la).spectrum(truth, numeig).eigenvalues
-    return Target(name, lam, area=mesh.area(), truth=truth, mesh=mesh, sphere=flow.sphere,
-                  factors=flow.factors, source=source)
+    return MeshTarget(name, lam, area=mesh.area(), truth=truth, mesh=mesh, sphere=flow.sphere,
+                      factors=flow.factors, source=source)
 
 
 #: For second-order convergence (the cotan eigenvalues: λ_h − λ ≈ C h²) the error of an eigenvalue on the mesh is
@@ -260,9 +209,9 @@ def subdivision_spectra(target: Target, levels: int | None = None) -> np.ndarray
     InvalidArgumentError
         For a target without a mesh spectrum.
     """
-    if target.source == "pl" and target.mesh is not None:
+    if isinstance(target, MeshTarget) and target.source == "pl" and target.mesh is not None:
         mesh, factors = target.mesh, None
-    elif target.source == "cmcf" and target.sphere is not None:
+    elif isinstance(target, MeshTarget) and target.source == "cmcf":
         mesh, factors = target.sphere, target.factors
     else:
         raise InvalidArgumentError(f"the target {target.name!r} (source {target.source!r}) is not a mesh's cotan "
@@ -343,7 +292,7 @@ def spectrum_target(path, numeig: int | None = None) -> Target:
     module), its first ``numeig`` eigenvalues (λ₀ = 0 included; default and cap: all of them), with their errors when
     the file has an error column; area and truth unknown."""
     data = read_spectrum_file(path)
-    target = Target(Path(path).stem, data.eigenvalues, source="file", errors=data.errors)
+    target = Target(Path(path).stem, data.eigenvalues, errors=data.errors)
     if numeig is None:
         return target
     return target.first(min(check_int(numeig, "numeig", minimum=2), target.numeig))

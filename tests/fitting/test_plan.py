@@ -1,0 +1,125 @@
+"""The plan of a fit is the library's: ``prepare_fit`` then ``fit(plan)`` is what ``shspec fit`` runs, bit for bit;
+each choice carries its reason; what cannot be planned is refused by name."""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+
+from shspec import fit, prepare_fit
+from shspec.cli import main
+from shspec.errors import InvalidArgumentError
+from shspec.fitting import FitPlan, FitRequest, blob_factor, harmonic_target, initial_parameters, read_initial
+from shspec.galerkin import HarmonicModel, LogHarmonicModel
+from shspec.inverse import FitOptions, Target, write_result
+from shspec.sphere.grid import evaluate_on_grid, glq_grid
+
+
+@pytest.mark.slow
+def test_the_documented_python_fit_of_a_shipped_mesh_is_the_cli_fit(tmp_path):
+    plan = prepare_fit("mesh:pebble")           # the guide's three lines
+    result = fit(plan)
+    write_result(result, tmp_path / "python")
+    assert main(["fit", "--target", "mesh:pebble", "--out", str(tmp_path / "cli"), "--quiet"]) == 0
+    py, cli = (json.loads((tmp_path / d / "summary.json").read_text()) for d in ("python", "cli"))
+    assert py["plan"] == cli["plan"] and py["surface_plan"] == cli["surface_plan"]
+    assert py["expected_error"] == cli["expected_error"] and py["model"] == cli["model"]
+    assert [s["energy"] for s in py["starts"]] == [s["energy"] for s in cli["starts"]]
+    with h5py.File(tmp_path / "python" / "result.h5") as a, h5py.File(tmp_path / "cli" / "result.h5") as b:
+        assert np.array_equal(a["target/eigenvalues"][()], b["target/eigenvalues"][()])
+        assert np.array_equal(a["solution"][()], b["solution"][()])  # the same rho, to the bit
+    # and the plan heard the pebble: a success within the errors it predicted
+    assert result.success_count >= 1 and py["surface"]["factor_error"] < 3 * plan.expected_error
+    assert {"model", "lmax_factor", "numeig", "lmax", "reg"} <= set(py["plan"])
+
+
+def test_every_choice_says_why_and_the_statement_says_it_before_the_fit(capsys):
+    plan = prepare_fit("blob", lmax_factor=6, lmax=12, numeig=40, workers=1,
+                       options=FitOptions(starts=1, max_iter=3, basin_hops=0), schedule="none")
+    assert isinstance(plan, FitPlan) and plan.target.numeig == 40 and plan.model.describe() == "harmonic Lb=12 La=6"
+    assert plan.choice("numeig").reason == "as asked" and plan.choice("reg").value == 0.0
+    result = fit(plan)
+    err = capsys.readouterr().err
+    assert err.index("fitting blob: 40 eigenvalues") < err.index("start 0")  # said before it runs
+    assert result.plan["plan"]["lmax_factor"] == {"value": 6, "reason": "as asked"}
+    with pytest.raises(InvalidArgumentError, match="only resume and executor"):
+        fit(plan, HarmonicModel(12, 6))
+
+
+def test_a_spectrum_with_errors_of_its_own_refuses_a_noise_too(tmp_path):
+    lam = harmonic_target(blob_factor(), 10, 30).eigenvalues
+    path = tmp_path / "with_errors.csv"
+    np.savetxt(path, np.c_[lam, np.r_[0.0, 1e-6 * lam[1:]]], delimiter=",", header="eigenvalue,error", comments="")
+    plan = prepare_fit(f"spectrum:{path}", lmax_factor=4, numeig=30, progress=False)
+    assert np.allclose(plan.target.errors[1:], 1e-6 * lam[1:])  # the file's errors are the target's
+    with pytest.raises(InvalidArgumentError, match="error column.*noise"):
+        prepare_fit(f"spectrum:{path}", lmax_factor=4, numeig=30, noise=0.5, progress=False)
+    assert main(["fit", "--target", f"spectrum:{path}", "--lmax-factor", "4", "--numeig", "30", "--noise", "1e-6",
+                 "--out", str(tmp_path / "out")]) == 1
+
+
+def test_a_planned_k_the_target_lacks_is_said_with_the_degree_it_supports():
+    lam = harmonic_target(blob_factor(), 16, 60).eigenvalues
+    plan = prepare_fit(lam, lmax_factor=6, progress=False)  # the plan asks for 2.5 * 49 = 122
+    assert plan.target.numeig == 60
+    assert any("only 60 eigenvalues; the plan asked for 122" in n and "support degree 3" in n for n in plan.notes)
+
+
+@pytest.mark.parametrize("fields, words", [
+    ({"target": "blob", "numeig": "auto"}, "needs a mesh target"),
+    ({"target": "blob", "model": "mesh", "numeig": 20, "lmax_factor": 4}, "needs a mesh target"),
+    ({"target": "blob", "model": "spline"}, "model must be one of"),
+    ({"target": "blob", "noise": -1.0}, "noise"),
+    ({"target": 3.0}, "a target is a string"),
+    ({"target": np.arange(4.0), "errors": None, "lmax_factor": 2, "numeig": 4, "reg": 0.1,
+      "options": FitOptions(reg=0.2)}, "disagree"),
+])
+def test_what_cannot_be_planned_is_refused_by_name(fields, words):
+    with pytest.raises(InvalidArgumentError, match=words):
+        prepare_fit(**{"progress": False, **fields})
+
+
+def test_a_path_must_say_what_it_holds(tmp_path):
+    with pytest.raises(InvalidArgumentError, match="spectrum:"):
+        FitRequest(tmp_path / "x.txt")
+
+
+def _rho_on_grid(coefficients, degree=20):
+    return evaluate_on_grid(coefficients, glq_grid(degree))
+
+
+def test_a_start_is_converted_to_the_model_that_reads_it(tmp_path):
+    """rho's coefficients start a log-rho fit as log rho (and back); nothing is read as the other."""
+    rho = blob_factor().coefficients
+    model = LogHarmonicModel(16, 12)
+    u = initial_parameters(rho, "rho", model)
+    assert np.max(np.abs(np.exp(_rho_on_grid(u)) / _rho_on_grid(rho) - 1)) < 2e-3  # log rho cut to degree 12
+    target = harmonic_target(blob_factor(), 16, 36)
+    start = model.eigenvalues(u, 36)
+    assert np.max(np.abs(start[1:] / target.eigenvalues[1:] - 1)) < 5e-3  # close to the truth, not 5.88 away
+    # a summary.json (rho's cilm) given to the log model, and a log fit's result.h5 given to the harmonic model
+    summary = tmp_path / "summary.json"
+    summary.write_text(json.dumps({"cilm": blob_factor().to_cilm().tolist()}))
+    assert np.array_equal(read_initial(summary, model), u)
+    result = tmp_path / "result.h5"
+    with h5py.File(result, "w") as f:
+        f["solution"] = u
+        f.attrs["model"] = model.describe()
+    back = read_initial(result, HarmonicModel(16, 12))
+    assert np.max(np.abs(_rho_on_grid(back) / _rho_on_grid(rho) - 1)) < 5e-3
+    with pytest.raises(InvalidArgumentError, match="holds no values"):
+        empty = tmp_path / "empty.txt"
+        empty.write_text("")
+        read_initial(empty, model)
+    with pytest.raises(InvalidArgumentError, match="per-vertex factors"):
+        initial_parameters(np.ones(642), "factors", model)
+
+
+def test_a_target_given_as_an_array_keeps_its_errors():
+    lam = harmonic_target(blob_factor(), 10, 20).eigenvalues
+    plan = prepare_fit(lam, errors=np.r_[0.0, 1e-4 * lam[1:]], lmax_factor=2, numeig=20, progress=False)
+    assert isinstance(plan.target, Target) and plan.expected_error is not None and plan.expected_error > 0
+    assert plan.record()["expected_error"] == plan.expected_error
