@@ -35,7 +35,8 @@ import numpy as np
 from .atomic import atomic_output, write_text
 from .errors import InvalidArgumentError
 
-__all__ = ["SpectrumFile", "read_spectrum_file", "read_spectrum", "write_spectrum", "SPECTRUM_SUFFIXES"]
+__all__ = ["SpectrumFile", "check_spectrum_path", "read_spectrum_file", "read_spectrum", "write_spectrum",
+           "SPECTRUM_SUFFIXES"]
 
 #: Suffixes :func:`write_spectrum` writes (and the reader reads; any other suffix is read as text).
 SPECTRUM_SUFFIXES = (".txt", ".csv", ".json", ".npy")
@@ -224,6 +225,26 @@ def _json_columns(path: Path):
             None if errors is None else cells)
 
 
+def check_spectrum_path(path) -> Path:
+    """``path`` as a spectrum file to read: the checks of :func:`read_spectrum_file` that need not open it, for a
+    command to make before any long work.
+
+    Raises
+    ------
+    InvalidArgumentError
+        ``path`` is not a path, names nothing (or a link to nothing), or a directory.
+    """
+    if not isinstance(path, (str, Path)) or not str(path):
+        raise InvalidArgumentError(f"a spectrum file is a path, got {path!r}")
+    path = Path(path)
+    if path.is_dir():
+        raise InvalidArgumentError(f"{path} is a directory, not a spectrum file")
+    if not path.exists():
+        gone = f" (a symbolic link to {path.readlink()}, which does not exist)" if path.is_symlink() else ""
+        raise InvalidArgumentError(f"{path}: no such spectrum file{gone}")
+    return path
+
+
 def read_spectrum_file(path) -> SpectrumFile:
     """Read a spectrum file in any of the formats of the module notes.
 
@@ -242,11 +263,7 @@ def read_spectrum_file(path) -> SpectrumFile:
         If the file cannot be read or its content is not a spectrum; the message names the file and, in text files,
         the line and column of the first bad value.
     """
-    if not isinstance(path, (str, Path)) or not str(path):
-        raise InvalidArgumentError(f"a spectrum file is a path, got {path!r}")
-    path = Path(path)
-    if path.is_dir():
-        raise InvalidArgumentError(f"{path} is a directory, not a spectrum file")
+    path = check_spectrum_path(path)
     suffix = path.suffix.lower()
     if suffix == ".npy":
         try:
