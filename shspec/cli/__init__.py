@@ -20,6 +20,7 @@ import warnings
 
 from .. import __version__
 from ..errors import ShspecError, ShspecWarning
+from ..mesh.progress import mesh_progress
 
 COMMAND_MODULES = ["shspec.cli.forward", "shspec.cli.mesh", "shspec.cli.experiment", "shspec.cli.fit", "shspec.cli.embed",
                     "shspec.cli.identifiability", "shspec.cli.precompute", "shspec.cli.topology"]
@@ -85,7 +86,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        with _sigterm_as_interrupt(), _warnings_as_lines(args.command):
+        # --quiet silences the mesh path's sizes and bars too (shown by default, in Python as here)
+        with (_sigterm_as_interrupt(), _warnings_as_lines(args.command),
+              mesh_progress(not getattr(args, "quiet", False))):
             return int(args.func(args) or 0)
     except ShspecError as exc:
         print(f"shspec {args.command}: error: {exc}", file=sys.stderr)

@@ -9,7 +9,6 @@ import numpy as np
 from ..errors import InvalidArgumentError
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.mesh_files import load_mesh
-from ..mesh.progress import mesh_progress
 from ..spectrum_file import read_spectrum_file
 from ..spectral.topology import MIN_EIGENVALUES, estimate_topology
 
@@ -50,8 +49,7 @@ def _topology(args) -> int:
     elif kind == "mesh" and arg:
         mesh = load_mesh(arg, require_genus0=False)
         numeig = args.numeig or min(DEFAULT_MESH_NUMEIG, max(MIN_EIGENVALUES, mesh.nvertices // 5))
-        with mesh_progress(not args.quiet):
-            lam = mesh_spectrum(mesh, numeig).eigenvalues[:numeig]
+        lam = mesh_spectrum(mesh, numeig).eigenvalues[:numeig]
         area = mesh.area() if area is None else area
     else:
         raise InvalidArgumentError(f"unknown target {args.target!r}: use spectrum:FILE or mesh:PATH")

@@ -118,7 +118,8 @@ class FitOptions:
     progress : bool
         Show the fit's progress on stderr (:class:`~shspec.inverse.progress.FitDisplay`): a bar on a terminal with
         the stage, the starts done, the successes, the elapsed and the estimated remaining time, and one line per
-        finished stage, hop and start.
+        finished stage, hop and start.  On by default, in Python as on the command line: a fit takes seconds to
+        minutes, and silence for that long reads as a hang.
     """
 
     optimizer: str | None = None
@@ -150,7 +151,7 @@ class FitOptions:
     success_tol: float = 1e-10
     checkpoint_every: int = 0
     checkpoint_path: str | None = None
-    progress: bool = False
+    progress: bool = True
 
     def __post_init__(self):
         if self.optimizer is not None:
