@@ -170,7 +170,9 @@ def validation_markdown(s: dict) -> str:
     status = "\n".join(f"| {key} | {v} |" for key, v in s["status"].items())
     fe = s["factor_errors"]["embedded_vs_cmcf"]
     caps = ""
-    if s["ambiguity"] is not None:
+    if s["ambiguity"] is not None and not s["ambiguity"]["caps"]:
+        caps = "\n## Bumps and dips\n\nNo caps (regions of positive Gaussian curvature) to test: nothing to mirror.\n"
+    elif s["ambiguity"] is not None:
         caps = "\n".join(f"| {c['kind']} | {c['area_fraction']:.3f} | {c['rms_original']:.3g} | "
                          f"{c['rms_mirrored']:.3g} | {'yes' if c['ambiguous'] else 'no'} |" for c in s["ambiguity"]["caps"])
         caps = ("\n## Bumps and dips\n\nCaps (regions of positive Gaussian curvature) mirrored through the plane of "

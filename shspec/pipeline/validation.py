@@ -49,6 +49,7 @@ from ..mesh.cmcf import CMCFResult, cmcf
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.model import MeshModel
 from ..mesh.plot import plot_hammer
+from ..mesh.mesh_files import save_mesh
 from ..mesh.triangle_mesh import TriangleMesh
 from ..report import validation_markdown
 from ..sphere.evaluate import sample_harmonic
@@ -251,7 +252,9 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
                 fit_info["predicted_error"] = plan.predicted
             verdict = ("ok" if best.success else "failed: the fitted spectrum does not reach the target within its "
                        f"errors ({success_definition(result)} does not hold)")
-            c_fit = sample_harmonic(result.alignment().aligned, flow.sphere.vertices)
+            aligned = result.alignment().aligned
+            fit_info["rho_cilm"] = aligned.to_cilm().tolist()  # the fitted rho, aligned with the cMCF factors
+            c_fit = sample_harmonic(aligned, flow.sphere.vertices)
             if np.any(c_fit <= 0):
                 status["fit"] = f"{verdict}; embedding skipped: the fitted factor is not positive at every vertex"
             else:
@@ -265,7 +268,7 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
 
     lam0 = spectra["target_pl"]
     summary = {
-        "name": name, "nvertices": mesh.nvertices, "nfaces": mesh.nfaces, "numeig": k, "lmax": opt.lmax,
+        "name": name, "nvertices": mesh.nvertices, "nfaces": mesh.nfaces, "numeig": k, "lmax": lb,
         "lmax_factor": la, "plan": None if plan is None else plan.to_dict(),
         "target_errors": [float(x) for x in target.errors],
         "hausdorff_relative": dist.hausdorff_relative, "chamfer_relative": dist.chamfer_relative,
@@ -320,7 +323,9 @@ def _ambiguity_figure(result, amb, up: str):
 
 
 def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int = 90) -> Path:
-    """Write ``summary.json``, ``report.md`` and the PNG figures of a validation to ``out_dir``.
+    """Write ``summary.json`` (with the fitted ρ's cilm, ``fit.rho_cilm``), ``report.md``, the PNG figures and the
+    re-embedded meshes (``embedded.obj`` of the cMCF factors, ``fit_embedded.obj`` of the fitted ones, in the
+    re-embedding's frame) of a validation to ``out_dir``.
 
     Parameters
     ----------
@@ -360,6 +365,9 @@ def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int =
         render_mesh(m, ax=fig.add_subplot(1, len(meshes), i + 1, projection="3d"), title=title, up=up)
     save_figure(fig, out / "meshes.png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
+    save_mesh(result.embedding.mesh, out / "embedded.obj")
+    if result.fit_embedding is not None:
+        save_mesh(result.fit_embedding.mesh, out / "fit_embedded.obj")
 
     amb = result.ambiguity
     if amb is not None and amb.caps:

@@ -17,7 +17,7 @@ from shspec.embed import AmbiguityOptions, angle_defects, detect_ambiguity, embe
 from shspec.errors import InvalidArgumentError
 from shspec.mesh.cmcf import cmcf
 from shspec.mesh.eigen import mesh_spectrum
-from shspec.mesh.mesh_files import save_mesh
+from shspec.mesh.mesh_files import load_mesh, save_mesh
 from shspec.mesh.shapes import blob, icosphere
 from shspec.pipeline import ValidationOptions, validate_target, write_report
 
@@ -83,6 +83,9 @@ def test_validation_pipeline_and_report(tmp_path):
     for name in ("summary.json", "meshes.png", "spectra.png", "factors.png"):
         assert (tmp_path / "out" / name).stat().st_size > 0
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["hausdorff_relative"] == s["hausdorff_relative"]
+    # the re-embedded surface is kept, and the summary names the basis it used
+    assert np.allclose(load_mesh(tmp_path / "out" / "embedded.obj").vertices, result.embedding.mesh.vertices)
+    assert s["lmax"] == 6 and s["lmax_factor"] == 3
 
 
 def test_commands(tmp_path, capsys):
