@@ -149,7 +149,10 @@ def _open_checked(path, what: str) -> h5py.File:
 
 def save_checkpoint(path, fp: dict, finished: list, progress, target: Target) -> None:
     """Write a checkpoint: the fingerprint (:func:`fingerprint`), the target (eigenvalues, errors, area), the
-    finished starts and the running start's progress (or None)."""
+    finished starts and the running start's progress (or None), as of its
+    :meth:`~shspec.inverse.problem.StartProgress.resume_point`."""
+    progress = None if progress is None else progress.resume_point()
+
     def write(f):
         f.attrs["format"] = CHECKPOINT_FORMAT
         f.attrs["fingerprint"] = json.dumps(fp, sort_keys=True)

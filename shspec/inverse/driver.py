@@ -60,6 +60,7 @@ def _run(problem: FitProblem, progress: StartProgress, checkpoint, t0: float) ->
         progress.params, progress.eigenvalues = progress.base, ev.eigenvalues
         progress.energy, progress.relative_residual = ev.energy, ev.relative_residual
         progress.work = progress.stage_work
+        progress.mark()
     for s in range(progress.stage, len(problem.stages)):
         resumed = progress.state is not None and s == progress.stage
         if not resumed and s == progress.stage and progress.history:
@@ -97,12 +98,17 @@ def _run(problem: FitProblem, progress: StartProgress, checkpoint, t0: float) ->
         if not resumed:
             progress.history.append((s, optimizer.ev.energy, optimizer.ev.relative_residual))
         record()
+        progress.mark()
         while optimizer.status is None and optimizer.iteration < max_iter:
             optimizer.step()
             progress.state = optimizer.state()
             progress.history.append((s, optimizer.ev.energy, optimizer.ev.relative_residual))
             record()
             progress.add_work(obj.cost)
+            if optimizer.status is None:
+                # not after the step that stopped the optimizer: its state does not say it stopped, and a resume
+                # from it would step on; from the state before, the resume takes that step again, and stops
+                progress.mark()
             if progress.display is not None:
                 progress.display.iteration(progress.index, s, optimizer.iteration, optimizer.ev.relative_residual)
             if checkpoint is not None and opt.checkpoint_every and (len(progress.history) - 1) % opt.checkpoint_every == 0:
@@ -130,6 +136,7 @@ def _run(problem: FitProblem, progress: StartProgress, checkpoint, t0: float) ->
         if progress.stage <= last:
             # checkpoint the end of the stages, so that a resume repeats only the (deterministic) hops
             progress.stage, progress.base, progress.stage_work = last + 1, progress.params, progress.work
+            progress.mark()
             if checkpoint is not None and opt.checkpoint_every:
                 checkpoint(progress)
         progress.status = basin_hop(problem, progress, progress.status, last)

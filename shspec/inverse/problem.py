@@ -251,6 +251,10 @@ class StartProgress:
     stage_work : float
         ``work`` when the start entered its current stage (or its final hops): where a resume that runs the stage
         again restarts the count.
+
+    A checkpoint holds :meth:`resume_point`, the state at the last :meth:`mark`, never the live fields: an
+    interrupt (Ctrl-C, SIGTERM) lands anywhere, between an optimizer's step and its history row, or inside the hops
+    whose rows a resume runs again, and a checkpoint of that moment would resume into another history.
     """
 
     index: int
@@ -272,6 +276,22 @@ class StartProgress:
     #: the fit's :class:`~shspec.inverse.progress.FitDisplay` while it runs here (None in an executor's worker,
     #: whose lines go to its own stderr); not part of a checkpoint
     display: object = field(default=None, repr=False, compare=False)
+    #: (stage, base, state, history rows, work, stage_work, status) at the last :meth:`mark`; None: none yet
+    _mark: tuple | None = field(default=None, repr=False, compare=False)
+
+    def mark(self) -> None:
+        """Note the present as where a resume may continue from: a completed iteration (``state`` that of its
+        optimizer), or the entry of a stage or of the final hops (``state`` None: the resume runs it from there)."""
+        self._mark = (self.stage, self.base, self.state, len(self.history), self.work, self.stage_work, self.status)
+
+    def resume_point(self) -> "StartProgress":
+        """The start as of its last :meth:`mark` (itself before any), what a checkpoint holds: resumed, it runs on
+        as this run did from there."""
+        if self._mark is None:
+            return self
+        stage, base, state, rows, work, stage_work, status = self._mark
+        return StartProgress(self.index, stage, base, state, self.history[:rows], seconds=self.seconds,
+                             status=status, work=work, stage_work=stage_work)
 
     def add_work(self, cost: float) -> None:
         """Count ``cost`` more work; raises :class:`~shspec.inverse.race.RaceLost` once the start can no longer win
