@@ -1,5 +1,6 @@
-"""The ``shspec`` console script: :func:`shspec.cli.main`, with a Ctrl-C during its imports handled as one during a
-command is (a one-line message and exit status 130).
+"""The console scripts ``shspec`` and ``shspec-precompute``: :func:`shspec.cli.main` and
+:func:`shspec.cli.precompute.main`, with a Ctrl-C during their imports handled as one during a command is (a
+one-line message and exit status 130).
 
 Importing the command line takes seconds (NumPy, SciPy, numba, h5py, pyshtools, matplotlib, every command's
 module); a Ctrl-C in that time raised ``KeyboardInterrupt`` outside every handler of :mod:`shspec.cli`, and Python
@@ -11,12 +12,13 @@ anything inside it runs ``shspec/__init__.py``, and with it those imports, first
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import signal
 import sys
 
-__all__ = ["main"]
+__all__ = ["main", "precompute"]
 
 
 def _interrupted(signum, frame):
@@ -24,15 +26,29 @@ def _interrupted(signum, frame):
     os._exit(130)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the ``shspec`` command line with ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
+@contextlib.contextmanager
+def _interrupts_end_the_process():
+    """Within the block SIGINT and SIGTERM end the process at once (module notes); the handlers are restored after."""
     previous = {sig: signal.signal(sig, _interrupted) for sig in (signal.SIGINT, signal.SIGTERM)
                 if signal.getsignal(sig) is not signal.SIG_IGN}  # an ignored signal (nohup, a background job) stays so
     try:
-        cli = importlib.import_module("shspec.cli")
-        for name in cli.COMMAND_MODULES:
-            importlib.import_module(name)
+        yield
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``shspec``: run the command line with ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
+    with _interrupts_end_the_process():
+        cli = importlib.import_module("shspec.cli")
+        for name in cli.COMMAND_MODULES:  # what building the parser imports
+            importlib.import_module(name)
     return cli.main(argv)
+
+
+def precompute(argv: list[str] | None = None) -> int:
+    """``shspec-precompute`` (what ``python -m precompute`` runs): the Gaunt table cache's command line."""
+    with _interrupts_end_the_process():
+        command = importlib.import_module("shspec.cli.precompute")
+    return command.main(argv)

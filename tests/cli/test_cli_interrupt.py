@@ -26,15 +26,16 @@ class Interrupt:
 
 sys.meta_path.insert(0, Interrupt())
 module, _, attr = {entry!r}.partition(":")
-sys.argv = ["shspec", "forward", "--help"]
+sys.argv = ["shspec", "--help"]
 sys.exit(getattr(importlib.import_module(module), attr)())
 """
 
 
-@pytest.mark.parametrize("trigger", ["h5py", "shspec.cli.forward"])
-def test_ctrl_c_during_the_imports_is_one_line_and_status_130(trigger):
+@pytest.mark.parametrize("script, trigger", [("shspec", "h5py"), ("shspec", "shspec.cli.forward"),
+                                             ("shspec-precompute", "h5py")])
+def test_ctrl_c_during_the_imports_is_one_line_and_status_130(script, trigger):
     """``h5py`` is imported with shspec itself, ``shspec.cli.forward`` while the parser is built."""
-    entry = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]["shspec"]
+    entry = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"][script]
     run = subprocess.run([sys.executable, "-c", CHILD.format(trigger=trigger, entry=entry)], cwd=ROOT,
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 130, run.stderr
