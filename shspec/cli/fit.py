@@ -20,7 +20,7 @@ from ..fitting.targets import TARGET_SOURCES
 from ..inverse.checkpoint import claim_checkpoint
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions
-from ..inverse.output import alignment_record, success_definition, write_result
+from ..inverse.output import alignment_record, rho_error, success_definition, surface_record, write_result
 from ..mesh.model import REGULARIZER_KINDS
 from ._common import whole_number
 from .help_format import HelpFormatter
@@ -185,6 +185,9 @@ def _report(result, out: Path) -> None:
     print(f"best start {best.index}: energy {best.energy:.3e}, max relative residual {best.relative_residual:.3e}; "
           f"{result.success_count}/{len(result.starts)} starts succeeded ({success_definition(result)}){stopped}; "
           f"{result.seconds:.1f} s; wrote {out}")
+    error = rho_error(ident, surface_record(result))
+    value = "unknown" if error["value"] is None else f"about {error['value']:.2g}"
+    print(f"rho: relative error {value} ({error['meaning'].removeprefix('unknown: ')})")
     aligned = alignment_record(result)  # computed once, by the summary already
     if aligned and "relative_error" in aligned:  # the truth is known (--truth, or a target that carries it)
         print(f"against the truth, after Moebius centering and the best element of O(3): relative L2 error of rho "

@@ -25,7 +25,7 @@ from .checkpoint import options_dict, save_result
 from .problem import CHI2_SIGMAS
 from .results import FitResult
 
-__all__ = ["summary", "write_result", "success_definition", "alignment_record", "surface_record"]
+__all__ = ["summary", "write_result", "success_definition", "alignment_record", "surface_record", "rho_error"]
 
 
 def alignment_record(result: FitResult) -> dict | None:
@@ -100,7 +100,8 @@ def summary(result: FitResult) -> dict:
                    for r in result.starts],
     }
     out["cilm"] = result.factor().to_cilm().tolist()
-    out["identifiability"] = result.identifiability().to_dict()
+    ident = result.identifiability()
+    out["identifiability"] = ident.to_dict()
     alignment = alignment_record(result)
     if alignment is not None:
         out["alignment"] = alignment
@@ -108,8 +109,34 @@ def summary(result: FitResult) -> dict:
     surface = surface_record(result)
     if surface is not None:
         out["surface"] = surface
+    out["rho_error"] = rho_error(ident, surface)
     out.update(result.plan)
     return out
+
+
+def rho_error(ident, surface: dict | None = None) -> dict:
+    """The one error of the fitted ρ to read, and what it is: ``{"value": relative L2 error or None, "meaning": ...}``.
+
+    A fit that did not succeed has none (a residual at a local minimum says nothing of the distance to the truth).
+    Otherwise: against a mesh's cMCF factors, the error bar of the surface record (the basis's floor with the
+    target's errors); else the error bar the target's errors leave; else, for an exact target, the error its final
+    residual leaves (linearized).  ``expected_error`` of a planned fit is the same kind of bar predicted before the
+    fit, at a random start of the fit's law."""
+    if ident.converged is False:
+        return {"value": None, "meaning": "unknown: the fit did not converge to its target, and a residual left at a "
+                "local minimum says nothing about the distance to the truth"}
+    if ident.underdetermined:
+        return {"value": None, "meaning": "unknown: the matched eigenvalues do not determine every direction of rho"}
+    if surface is not None and surface.get("error_bar") is not None:
+        return {"value": surface["error_bar"], "meaning": "expected relative L2 error against the mesh's cMCF "
+                "factors: the floor of the basis with the target's errors (surface.error_bar)"}
+    if ident.noise_error is not None and np.isfinite(ident.noise_error):
+        return {"value": float(ident.noise_error), "meaning": "expected relative L2 error that the target's own "
+                "errors leave (identifiability.error_bar)"}
+    if ident.error_estimate is not None:
+        return {"value": float(ident.error_estimate), "meaning": "relative L2 error that the final residual leaves, "
+                "linearized (identifiability.estimated_error)"}
+    return {"value": None, "meaning": "unknown: no residual or errors to judge by"}
 
 
 def write_result(result: FitResult, directory, *, figures: bool = True) -> Path:
