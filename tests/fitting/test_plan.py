@@ -132,16 +132,17 @@ def test_the_summary_names_the_one_error_of_rho_to_read():
 
     truth = ConformalFactor(random_centred_coefficients(1, 2, 0.2))
     exact = harmonic_target(truth, 10, 30)
-    plan = prepare_fit(exact, lmax_factor=2, numeig=30, lmax=10, progress=False, options=FitOptions(starts=1))
+    plan = prepare_fit(exact, lmax_factor=2, numeig=30, lmax=10, progress=False,
+                       options=FitOptions(starts=1, basin_hops=0))
     result = fit(plan)
     error = summary(result)["rho_error"]
     assert result.best.success and error["value"] == result.identifiability().error_estimate
     assert "final residual" in error["meaning"] and error["value"] < 1e-8
     noisy = prepare_fit(exact.eigenvalues, noise=1e-4, lmax_factor=2, numeig=30, lmax=10, progress=False,
-                        options=FitOptions(starts=1))
+                        options=FitOptions(starts=1, basin_hops=0))
     error = summary(fit(noisy))["rho_error"]
     assert "target's own errors" in error["meaning"] and 0 < error["value"] < 1e-2
     few = prepare_fit(exact.eigenvalues[:6], lmax_factor=4, numeig=6, lmax=10, progress=False,
-                      options=FitOptions(starts=1, max_iter=5))
-    assert summary(fit(few))["rho_error"] == {"value": None, "meaning": "unknown: the matched eigenvalues do not "
-                                             "determine every direction of rho"}
+                      options=FitOptions(starts=1, max_iter=5, basin_hops=0))
+    error = summary(fit(few))["rho_error"]  # 6 eigenvalues, 17 directions: whatever the residual, no error
+    assert error["value"] is None and error["meaning"].startswith("unknown: ")
