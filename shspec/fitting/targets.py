@@ -31,7 +31,7 @@ from ..mesh.shapes import star_surface
 from ..mesh.triangle_mesh import TriangleMesh
 from ..sphere.factor import ConformalFactor
 from ..sphere.harmonics import flat_index, ncoeffs
-from ..spectrum_file import read_spectrum, read_spectrum_file
+from ..spectrum_file import check_spectrum_path, read_spectrum, read_spectrum_file
 
 __all__ = ["BLOB_HARMONIC", "blob_factor", "Target", "MeshTarget", "harmonic_target", "mesh_target", "spectrum_target",
            "read_spectrum", "estimate_area", "parse_target", "TARGET_SOURCES", "subdivision_spectra",
@@ -316,12 +316,13 @@ def check_target_text(text: str) -> None:
         return
     if scheme == "mesh" and arg:
         path = resolve_mesh_path(arg)
+        if path.is_dir():
+            raise InvalidArgumentError(f"mesh target {arg!r} is a directory; name a mesh file in it")
         if not path.is_file():
             raise InvalidArgumentError(f"mesh target {arg!r}: no such file, nor a mesh shipped with shspec")
         return
     if scheme == "spectrum" and arg:
-        if not Path(arg).is_file():
-            raise InvalidArgumentError(f"spectrum target {arg!r}: no such file")
+        check_spectrum_path(arg)  # a directory, a missing file or a dangling link, named as such
         return
     raise InvalidArgumentError(f"unknown target {text!r}: use blob, star:l,m,p, mesh:PATH or spectrum:FILE")
 

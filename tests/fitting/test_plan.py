@@ -146,3 +146,10 @@ def test_the_summary_names_the_one_error_of_rho_to_read():
                       options=FitOptions(starts=1, max_iter=5, basin_hops=0))
     error = summary(fit(few))["rho_error"]  # 6 eigenvalues, 17 directions: whatever the residual, no error
     assert error["value"] is None and error["meaning"].startswith("unknown: ")
+
+
+def test_a_folder_given_as_a_spectrum_or_a_mesh_is_named_as_a_folder(tmp_path, capsys):
+    for scheme in ("spectrum", "mesh"):
+        assert main(["fit", "--target", f"{scheme}:{tmp_path}", "--out", str(tmp_path / "out")]) == 1
+        assert "is a directory" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
