@@ -17,6 +17,12 @@ so the temporary file is always removed: raised where Python's handler would rai
 callback or ``__del__`` of h5py's object registry, where Python prints "Exception ignored" and drops it, and the
 write then finished and the command exited 0.
 
+A set of files.  :func:`atomic_outputs` writes the outputs of one run (a fit's result.h5, summary.json and figures)
+as one unit: every file into a hidden staging folder first, then all of them renamed into place, so that a failure
+while writing (a full disk, a file-size limit) leaves every file of the previous run as it was, never a folder whose
+files come from two runs.  The few renames run under a marker file, :data:`INCOMPLETE`, which stays only if they
+are cut short (a SIGKILL between two of them) and says that the folder mixes two runs.
+
 Files are created with the mode ``mode & ~umask`` (0644 under the usual umask 022), like any file a program
 writes, not with the 0600 of :func:`tempfile.mkstemp`, so that a shared folder stays readable to its users.
 """
@@ -26,8 +32,11 @@ from __future__ import annotations
 import contextlib
 import errno
 import glob
+import io
+import json
 import os
 import re
+import shutil
 import signal
 import tempfile
 import threading
@@ -38,10 +47,18 @@ import h5py
 
 from .errors import OutputError, ShspecError
 
-__all__ = ["TEMP_SUFFIX", "atomic_path", "atomic_hdf5", "atomic_output", "write_text", "save_figure",
-           "write_failure", "temporary_files", "umask_mode"]
+__all__ = ["TEMP_SUFFIX", "INCOMPLETE", "MANIFEST", "atomic_path", "atomic_hdf5", "atomic_output", "atomic_outputs",
+           "OutputSet", "write_text", "write_hdf5", "save_figure", "write_failure", "temporary_files", "umask_mode"]
 
 TEMP_SUFFIX = ".tmp"
+
+#: The file that marks a folder whose outputs :func:`atomic_outputs` was replacing when it was stopped: the folder
+#: then mixes two runs.
+INCOMPLETE = "INCOMPLETE"
+
+#: The file listing the outputs of the last run :func:`atomic_outputs` wrote into a folder (JSON list of names): what
+#: the next run replaces, the files it does not write included.
+MANIFEST = ".shspec-outputs.json"
 
 
 def umask_mode(mode: int = 0o644) -> int:
@@ -193,17 +210,22 @@ def _errno(exc: BaseException) -> int | None:
     return number
 
 
+def _reason(exc: BaseException) -> str:
+    """Why a write failed, in words."""
+    number = _errno(exc)
+    return (_REASONS.get(number) or getattr(exc, "strerror", None) or (os.strerror(number) if number else None)
+            or str(exc) or type(exc).__name__)
+
+
 def write_failure(path: str | os.PathLike, exc: BaseException, *, existed: bool,
                   error: type[OSError] = OutputError) -> OSError:
     """The error to raise when an atomic write of ``path`` failed with ``exc``: it names the file, the reason in
     words and what is left (the previous file intact, or nothing written).  ``existed`` says whether ``path`` held a
     file before the write."""
-    number = _errno(exc)
-    reason = (_REASONS.get(number) or getattr(exc, "strerror", None) or (os.strerror(number) if number else None)
-              or str(exc) or type(exc).__name__)
     left = f"the previous {Path(path).name} is intact" if existed else "nothing was written"
-    out = error(f"cannot write {path}: {reason}; {left}")
-    out.errno = number
+    out = error(f"cannot write {path}: {_reason(exc)}; {left}")
+    # not OSError.filename, which would change the message
+    out.errno, out.output_path = _errno(exc), Path(path)
     return out
 
 
@@ -249,12 +271,114 @@ def write_text(path: str | os.PathLike, text: str) -> Path:
     return Path(path)
 
 
+def write_hdf5(path: str | os.PathLike, fill, *, error: type[OSError] = OutputError) -> Path:
+    """Write the HDF5 file that ``fill(f)`` fills (an ``h5py.File`` open for writing) to ``path`` atomically
+    (:func:`atomic_output`); returns the path.
+
+    The file is built in memory and written by Python: HDF5 itself never writes to the disk, where a failed write (a
+    full disk, a file-size limit) leaves the library in a state that crashes the process when it closes the file (a
+    segmentation fault after h5py's "Exception ignored" messages, under ``prlimit --fsize``).  For files that fit in
+    memory twice: results, checkpoints, spectra; not the Gaunt tables (:func:`atomic_hdf5`).
+    """
+    with atomic_output(path, error=error, hdf5=True) as tmp:
+        image = io.BytesIO()
+        with h5py.File(image, "w") as f:
+            fill(f)
+        tmp.write_bytes(image.getbuffer())
+    return Path(path)
+
+
 def save_figure(fig, path: str | os.PathLike, **savefig_options) -> Path:
     """Save a matplotlib figure to ``path`` atomically (:func:`atomic_output`), in the format of its suffix."""
     path = Path(path)
     with atomic_output(path) as tmp:
         fig.savefig(tmp, format=path.suffix.lstrip(".") or "png", **savefig_options)
     return path
+
+
+class OutputSet:
+    """The files of one run being written by :func:`atomic_outputs`: :meth:`path` gives where to write each."""
+
+    def __init__(self, directory: Path, staging: Path):
+        self.directory, self.staging = directory, staging
+        self.names: list[str] = []
+
+    def path(self, name: str) -> Path:
+        """Where to write the output ``name`` (a file name in the folder, written completely inside the block)."""
+        if Path(name).name != name or name in (INCOMPLETE, MANIFEST):
+            raise ValueError(f"an output is a plain file name other than {INCOMPLETE} and {MANIFEST}, got {name!r}")
+        if name not in self.names:
+            self.names.append(name)
+        return self.staging / name
+
+
+@contextlib.contextmanager
+def atomic_outputs(directory: str | os.PathLike, *, replaces=()) -> Iterator[OutputSet]:
+    """Write the outputs of one run into the existing folder ``directory`` as one unit: all of them new, or all as
+    they were.
+
+    The block writes each file at ``outputs.path(name)``, in a hidden staging folder inside ``directory``.  When it
+    succeeds, the outputs of the previous run there that this one does not write (those :data:`MANIFEST` lists, and
+    the names in ``replaces``, which folders written before the manifest existed may hold) are removed, and the new
+    ones renamed into place under the marker :data:`INCOMPLETE` (module notes).  Other files of the folder (a
+    checkpoint, say) are left alone.
+
+    Raises
+    ------
+    OutputError
+        If a file cannot be written (a full disk, a file-size limit, a read-only folder): it names the file and the
+        reason, and nothing of the folder has changed.  Errors of shspec that are no write failure propagate
+        unchanged, and so does Ctrl-C; the staging folder is removed either way.
+    """
+    directory = Path(directory)
+    try:
+        staging = Path(tempfile.mkdtemp(dir=directory, prefix=".outputs.", suffix=TEMP_SUFFIX))
+    except OSError as exc:
+        raise OutputError(f"cannot write into {directory}: {_reason(exc)}; nothing was written") from exc
+    outputs = OutputSet(directory, staging)
+    try:
+        try:
+            yield outputs
+            with open(staging / MANIFEST, "w", encoding="utf-8") as fh:
+                fh.write(json.dumps(outputs.names) + "\n")
+        except (OSError, RuntimeError) as exc:  # h5py reports a failed write as a RuntimeError
+            # the file the block was writing, in the words of the failure under shspec's own error if there is one
+            failed = getattr(exc, "output_path", None) or getattr(exc, "filename", None)
+            name = Path(failed).name if failed else outputs.names[-1] if outputs.names else MANIFEST
+            cause = exc.__cause__ if isinstance(exc, ShspecError) and exc.__cause__ is not None else exc
+            raise OutputError(f"cannot write {directory / name}: {_reason(cause)}; the outputs of this run were not "
+                              f"written, and those of {directory} are as they were") from exc
+        _swap_in(outputs, set(replaces))
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
+def _swap_in(outputs: OutputSet, replaces: set) -> None:
+    """Replace the previous run's outputs in ``outputs.directory`` by the staged ones (:func:`atomic_outputs`)."""
+    directory = outputs.directory
+    try:
+        old = set(json.loads((directory / MANIFEST).read_text(encoding="utf-8")))
+    except (OSError, ValueError, TypeError):  # none yet, or not one of ours: the names given
+        old = set()
+    stale = sorted((old | replaces) - set(outputs.names))
+    try:
+        write_text(directory / INCOMPLETE, f"shspec was replacing the outputs of a run in this folder and was "
+                   f"stopped: its files may come from two runs ({', '.join(outputs.names)}). Run it again.\n")
+    except OutputError as exc:
+        raise OutputError(f"{exc}; the outputs of this run were not written, and those of {directory} are as they "
+                          "were") from exc
+    try:
+        for name in stale:
+            with contextlib.suppress(FileNotFoundError):
+                (directory / name).unlink()
+        for name in [*outputs.names, MANIFEST]:
+            os.replace(outputs.staging / name, directory / name)
+        _fsync_dir(directory)
+        (directory / INCOMPLETE).unlink()
+    except OSError as exc:
+        raise OutputError(f"cannot put the outputs of this run into {directory}: {_reason(exc)}; the folder now "
+                          f"mixes two runs, as its file {INCOMPLETE} says: run again") from exc
+    _fsync_dir(directory)
 
 
 def temporary_files(path: str | os.PathLike) -> list[Path]:

@@ -10,11 +10,10 @@ import time
 import warnings
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from .._version import __version__
-from ..atomic import atomic_output, save_figure, write_text
+from ..atomic import atomic_output, save_figure, write_hdf5, write_text
 from ._common import CACHE_DIR_HELP
 from .help_format import HelpFormatter
 from ..errors import BandLimitError, InvalidArgumentError, TruncationWarning
@@ -180,13 +179,15 @@ def _save(path: Path, record: dict, vectors: np.ndarray) -> None:
         with atomic_output(path) as tmp:
             tmp.write_text(json.dumps(record, indent=1))
     elif path.suffix.lower() in (".h5", ".hdf5"):
-        with atomic_output(path, hdf5=True) as tmp, h5py.File(tmp, "w") as f:
+        def fill(f):
             f["eigenvalues"] = np.asarray(record["eigenvalues"])
             f["eigenvectors"] = vectors
             f["rho_coefficients"] = np.asarray(record["rho_coefficients"])
             for key, value in record.items():
                 if key not in ("eigenvalues", "rho_coefficients"):
                     f.attrs[key] = np.nan if value is None else value  # HDF5 has no null; JSON no inf
+
+        write_hdf5(path, fill)
     else:
         raise InvalidArgumentError(f"--out must end in .json or .h5, got {path.name}")
 

@@ -24,7 +24,7 @@ import numpy as np
 import scipy
 
 from .._version import __version__
-from ..atomic import atomic_output
+from ..atomic import write_hdf5
 from ..errors import CheckpointError
 from ..spectral_model import SpectralModel
 from .target import Target
@@ -114,16 +114,17 @@ def _content_checksum(f: h5py.File) -> str:
 
 
 def _atomic(path: Path, write) -> None:
-    """Write an HDF5 file through ``write(f)`` atomically (:func:`shspec.atomic.atomic_output`), with its checksum;
+    """Write an HDF5 file through ``write(f)`` atomically (:func:`shspec.atomic.write_hdf5`), with its checksum;
     a full disk or a read-only folder is one CheckpointError naming the file (the previous one intact)."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise CheckpointError(f"cannot write {path}: cannot create its folder: {exc.strerror or exc}") from exc
-    with atomic_output(path, error=CheckpointError, hdf5=True) as tmp:
-        with h5py.File(tmp, "w") as f:
-            write(f)
-            f.attrs["checksum"] = _content_checksum(f)
+    def fill(f):
+        write(f)
+        f.attrs["checksum"] = _content_checksum(f)
+
+    write_hdf5(path, fill, error=CheckpointError)
 
 
 def _open_checked(path, what: str) -> h5py.File:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import save_figure, write_text
+from ..atomic import atomic_outputs, save_figure, write_text
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..outputs import ensure_directory
 from ..sphere.evaluate import sample_harmonic
@@ -139,32 +139,49 @@ def rho_error(ident, surface: dict | None = None) -> dict:
     return {"value": None, "meaning": "unknown: no residual or errors to judge by"}
 
 
+#: What a fit writes into its folder but the model's own files: what a fit replaces there even when the folder's
+#: list of the previous fit's outputs (:data:`shspec.atomic.MANIFEST`) is missing.
+FIT_OUTPUTS = ("result.h5", "summary.json", "history.png", "residuals.png", "factors.png")
+
+
 def write_result(result: FitResult, directory, *, figures: bool = True) -> Path:
     """Write ``result.h5`` (:func:`~shspec.inverse.checkpoint.save_result`), ``summary.json``, the model's own files
     (:meth:`~shspec.spectral_model.SpectralModel.write_files`: factors.txt and sphere.obj of a mesh fit) and, if ``figures``,
     history.png, residuals.png, factors.png and the model's own figures into ``directory`` (created).
 
+    The files are one unit (:func:`shspec.atomic.atomic_outputs`): they replace every output of the fit written
+    there before, those this one does not write (a figure it skips) included, or, when one cannot be written, none
+    does; a checkpoint in the folder is left alone.
+
     Returns
     -------
     Path
         The directory.
+
+    Raises
+    ------
+    OutputError
+        If a file cannot be written (a full disk, a file-size limit, a read-only folder): the folder is then as it
+        was.
     """
     out = ensure_directory(directory)
-    save_result(out / "result.h5", result)
-    write_text(out / "summary.json", json.dumps(summary(result), indent=2) + "\n")
-    result.model.write_files(result.best.params, out)
-    if figures:
-        import matplotlib.pyplot as plt
+    with atomic_outputs(out, replaces=FIT_OUTPUTS) as files:
+        save_result(files.path("result.h5"), result)
+        write_text(files.path("summary.json"), json.dumps(summary(result), indent=2) + "\n")
+        for name in result.model.write_files(result.best.params, files.staging):
+            files.path(name)
+        if figures:
+            import matplotlib.pyplot as plt
 
-        figs = {"history.png": plots.plot_history(result), "residuals.png": plots.plot_residuals(result)}
-        try:
-            figs["factors.png"] = plots.plot_factors(result)
-        except NotPositiveError:
-            pass  # the alignment could not be made; summary.json says why
-        figs.update(result.model.figures(result.best.params, result.target))
-        for name, fig in figs.items():
+            figs = {"history.png": plots.plot_history(result), "residuals.png": plots.plot_residuals(result)}
             try:
-                save_figure(fig, out / name, dpi=110)
-            finally:
-                plt.close(fig)
+                figs["factors.png"] = plots.plot_factors(result)
+            except NotPositiveError:
+                pass  # the alignment could not be made; summary.json says why
+            figs.update(result.model.figures(result.best.params, result.target))
+            for name, fig in figs.items():
+                try:
+                    save_figure(fig, files.path(name), dpi=110)
+                finally:
+                    plt.close(fig)
     return out

@@ -83,7 +83,7 @@ def test_a_full_disk_while_writing_summary_json_keeps_the_old_one(tmp_path, tiny
     with pytest.raises(OutputError) as info:
         write_result(tiny_result, tmp_path, figures=False)
     message = str(info.value)
-    assert "summary.json" in message and "disk is full" in message and "previous summary.json is intact" in message
+    assert "summary.json" in message and "disk is full" in message and "are as they were" in message
     assert (tmp_path / "summary.json").read_text() == old
     assert not list(tmp_path.glob("*.tmp"))
 
@@ -97,7 +97,7 @@ def test_a_full_disk_while_writing_a_figure_keeps_the_old_png(tmp_path, tiny_res
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", half_written)
-    with pytest.raises(OutputError, match=r"history\.png: the disk is full .*previous history\.png is intact"):
+    with pytest.raises(OutputError, match=r"history\.png: the disk is full .*are as they were"):
         write_result(tiny_result, tmp_path)
     assert (tmp_path / "history.png").read_bytes() == old
     assert not list(tmp_path.glob("*.tmp"))
@@ -124,7 +124,8 @@ def test_a_read_only_output_folder_is_one_output_error(tmp_path, tiny_result, mo
         raise OSError(errno.EROFS, "Read-only file system")
 
     monkeypatch.setattr(tempfile, "mkstemp", read_only)
-    with pytest.raises(CheckpointError, match=r"result\.h5: the file system is read-only; nothing was written"):
+    with pytest.raises(OutputError, match=r"result\.h5: the file system is read-only; the outputs of this run were "
+                                          "not written"):
         write_result(tiny_result, tmp_path / "ro", figures=False)
 
 
