@@ -54,6 +54,7 @@ from ..mesh.triangle_mesh import TriangleMesh
 from ..report import validation_markdown
 from ..sphere.evaluate import sample_harmonic
 from ..sphere.rotate import power_spectrum
+from ..sphere.harmonics import vector_to_cilm
 from ..fitting.targets import mesh_target, refined_target
 
 __all__ = ["ValidationOptions", "ValidationResult", "validate_target", "write_report", "SPECTRUM_LABELS"]
@@ -185,90 +186,130 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
     opt = check_options(options, ValidationOptions)
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
-    say = log if log is not None else (lambda _msg: None)
-    start = time.perf_counter()
-    status, spectra, times = {}, {}, {}
-
-    t = time.perf_counter()
-    flow = cmcf(mesh)
-    times["cmcf"] = time.perf_counter() - t
-    status["cmcf"] = "ok" if flow.success else "ok (not converged)"
-    say(f"cMCF: {flow.iterations} steps, roundness {flow.roundness:.2e}, {times['cmcf']:.1f} s")
-
-    t = time.perf_counter()
-    k0 = min(opt.numeig or default_numeig(mesh.nvertices), mesh.nvertices - 1)
-    target = refined_target(mesh_target(mesh, 30, k0, TRUTH_DEGREE, source="pl", name=name, flow=flow))
-    plan = None
-    if opt.lmax_factor is None and opt.numeig is None:
-        plan = plan_surface_fit(target, accuracy=opt.accuracy)
-        la, k, lb = plan.lmax_factor, plan.numeig, plan.lmax
-        say(plan.statement())
-    else:
-        la = mesh_band_limit(mesh.nvertices, opt.lmax_factor or 8)
-        k = k0
-        lb = opt.lmax or max(basis_degree_for(k, la), 16)
-    target = target.first(k) if plan is None else plan.fitted_target(target)
-    times["plan"] = time.perf_counter() - t
-
-    spectra["target_pl"] = target.eigenvalues
-    spectra["cmcf_pl"] = MeshModel(flow.sphere).spectrum(flow.factors, k).eigenvalues
-    log_c, floor = log_floor(flow.sphere, flow.factors, la)
-    spectra["cmcf_harmonic"] = LogHarmonicModel(lb, la).eigenvalues(log_c, k)
-    status["cmcf_harmonic"] = "ok"
-    say(f"spectra: target, cMCF PL, cMCF log-harmonic (La = {la}: floor {floor:.2g})")
-
-    emb = embed(flow.sphere, flow.factors, opt.embed)
-    times["embed"] = emb.seconds
-    status["embed"] = "ok" if emb.success else "ok (not successful: see flags)"
-    say(f"re-embedding: rms edge error {emb.edge_error_rms:.3g}, {emb.seconds:.1f} s")
-    dist = surface_distance(emb.mesh, mesh)
-    spectra["embedded_pl"] = mesh_spectrum(emb.mesh, k, whole_multiplets=False).eigenvalues
-    amb = detect_ambiguity(flow.sphere, emb, embed_options=opt.embed) if opt.ambiguity else None
-    status["ambiguity"] = "ok" if opt.ambiguity else "skipped: disabled"
-
-    t = time.perf_counter()
-    re_flow = cmcf(emb.mesh)
+    run = _Run(mesh, opt, name, log if log is not None else (lambda _msg: None))
+    flow = run.timed("cmcf", cmcf, mesh)
+    run.status["cmcf"] = "ok" if flow.success else "ok (not converged)"
+    run.say(f"cMCF: {flow.iterations} steps, roundness {flow.roundness:.2e}, {run.times['cmcf']:.1f} s")
+    target, plan, la, lb = run.timed("plan", _planned_target, run, flow)
+    floor = _reference_spectra(run, flow, target, la, lb)
+    emb, dist, amb = _embedding(run, flow)
+    re_flow = run.timed("factor_errors", cmcf, emb.mesh)
     factor_errors = {"embedded_vs_cmcf": _factor_comparison(re_flow.sphere, re_flow.factors, flow.sphere,
                                                             flow.factors, la)}
-    times["factor_errors"] = time.perf_counter() - t
+    fit_info, fit_emb, fit_dist = _fitted(run, flow, target, plan, la, lb)
+    summary = _summary(run, flow, target, plan, (la, lb, floor), (emb, dist, amb), (fit_info, fit_emb, fit_dist),
+                       factor_errors)
+    return ValidationResult(name=name, target=mesh, flow=flow, spectra=run.spectra, status=run.status,
+                            embedding=emb, distance=dist, ambiguity=amb, fit_embedding=fit_emb,
+                            fit_distance=fit_dist, summary=summary)
 
-    fit_emb = fit_dist = None
-    fit_info = {}
-    if not opt.fit:
-        status["fit"] = "skipped: disabled"
+
+@dataclass
+class _Run:
+    """A validation as it runs: its mesh, options and name, what it says, and what each step has found."""
+
+    mesh: TriangleMesh
+    opt: ValidationOptions
+    name: str
+    say: object
+    status: dict = field(default_factory=dict)
+    spectra: dict = field(default_factory=dict)
+    times: dict = field(default_factory=dict)
+    start: float = field(default_factory=time.perf_counter)
+
+    def timed(self, step: str, function, *args):
+        t = time.perf_counter()
+        out = function(*args)
+        self.times[step] = time.perf_counter() - t
+        return out
+
+
+def _planned_target(run: _Run, flow: CMCFResult):
+    """The refined PL target cut to its K, with its plan (None when La and K are given), La and Lb."""
+    opt, mesh = run.opt, run.mesh
+    k0 = min(opt.numeig or default_numeig(mesh.nvertices), mesh.nvertices - 1)
+    target = refined_target(mesh_target(mesh, 30, k0, TRUTH_DEGREE, source="pl", name=run.name, flow=flow))
+    if opt.lmax_factor is not None or opt.numeig is not None:
+        la = mesh_band_limit(mesh.nvertices, opt.lmax_factor or 8)
+        return target.first(k0), None, la, opt.lmax or max(basis_degree_for(k0, la), 16)
+    plan = plan_surface_fit(target, accuracy=opt.accuracy)
+    run.say(plan.statement())
+    return plan.fitted_target(target), plan, plan.lmax_factor, plan.lmax
+
+
+def _reference_spectra(run: _Run, flow: CMCFResult, target, la: int, lb: int) -> float:
+    """The target's spectrum and those of its cMCF factors (PL, and log-harmonic of degree La); the floor of La."""
+    k = target.numeig
+    run.spectra["target_pl"] = target.eigenvalues
+    run.spectra["cmcf_pl"] = MeshModel(flow.sphere).spectrum(flow.factors, k).eigenvalues
+    log_c, floor = log_floor(flow.sphere, flow.factors, la)
+    run.spectra["cmcf_harmonic"] = LogHarmonicModel(lb, la).eigenvalues(log_c, k)
+    run.status["cmcf_harmonic"] = "ok"
+    run.say(f"spectra: target, cMCF PL, cMCF log-harmonic (La = {la}: floor {floor:.2g})")
+    return floor
+
+
+def _embedding(run: _Run, flow: CMCFResult):
+    """The cMCF factors re-embedded, its distance to the target, its spectrum and the bump/dip ambiguity."""
+    opt = run.opt
+    emb = embed(flow.sphere, flow.factors, opt.embed)
+    run.times["embed"] = emb.seconds
+    run.status["embed"] = "ok" if emb.success else "ok (not successful: see flags)"
+    run.say(f"re-embedding: rms edge error {emb.edge_error_rms:.3g}, {emb.seconds:.1f} s")
+    dist = surface_distance(emb.mesh, run.mesh)
+    k = run.spectra["target_pl"].size
+    run.spectra["embedded_pl"] = mesh_spectrum(emb.mesh, k, whole_multiplets=False).eigenvalues
+    amb = detect_ambiguity(flow.sphere, emb, embed_options=opt.embed) if opt.ambiguity else None
+    run.status["ambiguity"] = "ok" if opt.ambiguity else "skipped: disabled"
+    return emb, dist, amb
+
+
+def _fitted(run: _Run, flow: CMCFResult, target, plan, la: int, lb: int):
+    """The log-rho fit of the target and its re-embedding: (fit record, EmbedResult or None, distance or None)."""
+    out = {}, None, None
+    if not run.opt.fit:
+        run.status["fit"] = "skipped: disabled"
     elif plan is not None and plan.beyond_basis:
-        status["fit"] = f"not attempted: {plan.diagnosis()}"
+        run.status["fit"] = f"not attempted: {plan.diagnosis()}"
     else:
         try:
-            t = time.perf_counter()
-            result = fit(target, LogHarmonicModel(lb, la), FitOptions(starts=opt.fit_starts, progress=False))
-            times["fit"] = time.perf_counter() - t
-            best = result.best
-            spectra["fit_harmonic"] = result.model.eigenvalues(best.params, k)
-            fit_info = {"seconds": times["fit"], "residual_chi2_reached": best.success,
-                        "error_bar": result.identifiability().noise_error,
-                        **(surface_record(result) or {})}
-            if plan is not None:
-                fit_info["predicted_error"] = plan.predicted
-            verdict = ("ok" if best.success else "failed: the fitted spectrum does not reach the target within its "
-                       f"errors ({success_definition(result)} does not hold)")
-            aligned = result.alignment().aligned
-            fit_info["rho_cilm"] = aligned.to_cilm().tolist()  # the fitted rho, aligned with the cMCF factors
-            c_fit = sample_harmonic(aligned, flow.sphere.vertices)
-            if np.any(c_fit <= 0):
-                status["fit"] = f"{verdict}; embedding skipped: the fitted factor is not positive at every vertex"
-            else:
-                fit_emb = embed(flow.sphere, c_fit, opt.embed)
-                fit_dist = surface_distance(fit_emb.mesh, mesh)
-                spectra["fit_embedded_pl"] = mesh_spectrum(fit_emb.mesh, k, whole_multiplets=False).eigenvalues
-                status["fit"] = verdict
+            out = _fit_and_embed(run, flow, target, plan, la, lb)
         except ShspecError as exc:
-            status["fit"] = f"failed: {exc}"
-    say(f"fit: {status['fit']}")
+            run.status["fit"] = f"failed: {exc}"
+    run.say(f"fit: {run.status['fit']}")
+    return out
 
-    lam0 = spectra["target_pl"]
-    summary = {
-        "name": name, "nvertices": mesh.nvertices, "nfaces": mesh.nfaces, "numeig": k, "lmax": lb,
+
+def _fit_and_embed(run: _Run, flow: CMCFResult, target, plan, la: int, lb: int):
+    result = run.timed("fit", fit, target, LogHarmonicModel(lb, la),
+                       FitOptions(starts=run.opt.fit_starts, progress=False))
+    best, k = result.best, target.numeig
+    run.spectra["fit_harmonic"] = result.model.eigenvalues(best.params, k)
+    info = {"seconds": run.times["fit"], "residual_chi2_reached": best.success,
+            "error_bar": result.identifiability().noise_error, **(surface_record(result) or {})}
+    if plan is not None:
+        info["predicted_error"] = plan.predicted
+    verdict = ("ok" if best.success else "failed: the fitted spectrum does not reach the target within its "
+               f"errors ({success_definition(result)} does not hold)")
+    aligned = result.alignment().aligned
+    info["rho_cilm"] = vector_to_cilm(aligned).tolist()  # the fitted rho, aligned with the cMCF factors
+    c_fit = sample_harmonic(aligned, flow.sphere.vertices)
+    if np.any(c_fit <= 0):
+        run.status["fit"] = f"{verdict}; embedding skipped: the fitted factor is not positive at every vertex"
+        return info, None, None
+    fit_emb = embed(flow.sphere, c_fit, run.opt.embed)
+    fit_dist = surface_distance(fit_emb.mesh, run.mesh)
+    run.spectra["fit_embedded_pl"] = mesh_spectrum(fit_emb.mesh, k, whole_multiplets=False).eigenvalues
+    run.status["fit"] = verdict
+    return info, fit_emb, fit_dist
+
+
+def _summary(run: _Run, flow, target, plan, degrees, embedding, fitted, factor_errors) -> dict:
+    """The JSON-ready numbers of a validation (:func:`write_report`)."""
+    (la, lb, floor), (emb, dist, amb), (fit_info, fit_emb, fit_dist) = degrees, embedding, fitted
+    lam0, mesh = run.spectra["target_pl"], run.mesh
+    return {
+        "name": run.name, "nvertices": mesh.nvertices, "nfaces": mesh.nfaces, "numeig": target.numeig, "lmax": lb,
         "lmax_factor": la, "plan": None if plan is None else plan.to_dict(),
         "target_errors": [float(x) for x in target.errors],
         "hausdorff_relative": dist.hausdorff_relative, "chamfer_relative": dist.chamfer_relative,
@@ -279,10 +320,10 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
         "cmcf": {"iterations": flow.iterations, "roundness": flow.roundness, "success": flow.success,
                  "factor_min": float(flow.factors.min()), "factor_max": float(flow.factors.max()),
                  "log_floor": floor},
-        "spectral_error": {key: float(np.max(np.abs(v[1:] / lam0[1:] - 1))) for key, v in spectra.items()
+        "spectral_error": {key: float(np.max(np.abs(v[1:] / lam0[1:] - 1))) for key, v in run.spectra.items()
                            if key != "target_pl"},
-        "spectra": {key: v.tolist() for key, v in spectra.items()},
-        "factor_errors": factor_errors, "fit": fit_info, "status": status,
+        "spectra": {key: v.tolist() for key, v in run.spectra.items()},
+        "factor_errors": factor_errors, "fit": fit_info, "status": run.status,
         "ambiguity": None if amb is None else {
             "candidates": amb.candidates, "ambiguous": amb.ambiguous,
             "caps": [{"kind": c.kind, "area_fraction": c.area_fraction, "rms_original": c.rms_original,
@@ -290,11 +331,8 @@ def validate_target(mesh: TriangleMesh, options: ValidationOptions | None = None
         "fit_embedding": None if fit_emb is None else {
             "edge_length_error": fit_emb.edge_error_rms, "hausdorff_relative": fit_dist.hausdorff_relative,
             "chamfer_relative": fit_dist.chamfer_relative, "success": fit_emb.success},
-        "embed_options": asdict(opt.embed), "seconds": {**times, "total": time.perf_counter() - start},
+        "embed_options": asdict(run.opt.embed), "seconds": {**run.times, "total": time.perf_counter() - run.start},
     }
-    return ValidationResult(name=name, target=mesh, flow=flow, spectra=spectra, status=status, embedding=emb,
-                            distance=dist, ambiguity=amb, fit_embedding=fit_emb, fit_distance=fit_dist,
-                            summary=summary)
 
 
 #: Colours of ambiguity.png, by category: not tested, decided, ambiguous (the legend and the table's words).
@@ -319,6 +357,29 @@ def _ambiguity_figure(result, amb, up: str):
     fig.legend(handles=[Patch(color=c, label=t) for c, t in
                         zip(AMBIGUITY_COLOURS, ("not tested", "decided", "ambiguous"))],
                loc="lower center", ncol=3, fontsize="small", frameon=False)
+    return fig
+
+
+def _spectra_figure(result: ValidationResult):
+    """Every spectrum of the validation, and its relative difference from the target's, side by side."""
+    import matplotlib.pyplot as plt
+
+    lam0 = result.spectra["target_pl"]
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.6))
+    for n, (key, lam) in enumerate(result.spectra.items()):
+        # one colour and one readable name per source, the same in both panels; the spectra nearly coincide on the
+        # left, so the target is drawn as dots and the others as thin lines over it
+        target = key == "target_pl"
+        style = dict(color=f"C{n}", label=SPECTRUM_LABELS.get(key, key))
+        a1.plot(lam, "o" if target else "-", ms=3, lw=0.8, zorder=1 if target else 2, **style)
+        if not target:
+            a2.semilogy(np.arange(1, lam.size), np.maximum(np.abs(lam[1:] / lam0[1:] - 1), 1e-300), ".-", ms=3,
+                        lw=0.8, **style)
+    a1.set(xlabel="index i", ylabel="λ_i (1/area)", title="the spectra")
+    a2.set(xlabel="index i", ylabel="|λ_i / λ_i(target) − 1|", title="their difference from the target's")
+    # one legend for both panels, below them: inside, it covered the data
+    fig.legend(*a1.get_legend_handles_labels(), loc="lower center", ncol=3, fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0.12, 1, 1))
     return fig
 
 
@@ -381,21 +442,7 @@ def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int =
     save_figure(fig, out / "factors.png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
 
-    lam0 = result.spectra["target_pl"]
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.2))
-    for n, (key, lam) in enumerate(result.spectra.items()):
-        # one colour and one readable name per source, the same in both panels
-        style = dict(label=SPECTRUM_LABELS.get(key, key), ms=4, color=f"C{n}")
-        a1.plot(lam, ".-", **style)
-        if key != "target_pl":
-            a2.semilogy(np.arange(1, lam.size), np.maximum(np.abs(lam[1:] / lam0[1:] - 1), 1e-300), ".-", **style)
-    a1.set_xlabel("index i")
-    a1.set_ylabel("λ_i (1/area)")
-    a1.legend(fontsize=8)
-    a2.set_xlabel("index i")
-    a2.set_ylabel("|λ_i / λ_i(target) − 1|")
-    a2.legend(fontsize=8)
-    fig.tight_layout()
+    fig = _spectra_figure(result)
     save_figure(fig, out / "spectra.png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
 
