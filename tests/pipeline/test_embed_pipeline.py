@@ -159,3 +159,15 @@ def test_recursive_refinement_keeps_residual_and_distance_and_bounds_the_spectra
     assert second.embedding.edge_error_rms < 0.01
     with pytest.raises(InvalidArgumentError):
         recursive_fit(target, options=RecursiveOptions(passes=0))
+
+
+@pytest.mark.slow
+def test_validate_keeps_the_fitted_rho_and_both_surfaces(tmp_path):
+    assert main(["validate", "--target", "mesh:pebble", "--out", str(tmp_path / "v")]) == 0
+    s = json.loads((tmp_path / "v" / "summary.json").read_text())
+    assert s["status"]["fit"] == "ok" and s["lmax"] == s["plan"]["lmax"] and s["lmax_factor"] == s["plan"]["lmax_factor"]
+    rho = np.array(s["fit"]["rho_cilm"])
+    assert rho.ndim == 3 and rho.shape[0] == 2 and rho[0, 0, 0] > 0  # the aligned rho (Möbius maps raise its degree)
+    for name in ("embedded.obj", "fit_embedded.obj"):
+        assert load_mesh(tmp_path / "v" / name).nvertices == s["nvertices"]
+    assert s["fit_embedding"]["hausdorff_relative"] < 0.05  # the pebble is heard: its surface comes back
