@@ -283,11 +283,15 @@ def claim_checkpoint(path, *, resume: bool, overwrite: bool) -> None:
     Raises
     ------
     CheckpointError
-        If ``resume`` and there is no checkpoint, or a checkpoint exists and neither ``resume`` nor ``overwrite``.
+        If ``resume`` and there is no checkpoint, or a checkpoint exists and neither ``resume`` nor ``overwrite``, or
+        something else than a file has its name (never removed, whatever ``overwrite``).
     """
     path = Path(path)
     if resume and overwrite:
         raise CheckpointError("--resume continues the checkpoint and --overwrite discards it: give one of them")
+    if path.exists() and not path.is_file():
+        raise CheckpointError(f"{path} is a {'directory' if path.is_dir() else 'special file'}, not a checkpoint; a "
+                              "fit writes its checkpoint there: move it out of the way, or give another output folder")
     if resume:
         if not path.is_file():
             raise CheckpointError(f"nothing to resume: there is no checkpoint {path} (a fit writes one with "

@@ -11,21 +11,32 @@ eigenvalue residual max_i |λ_i − λ*_i|/λ*_i (i ≥ 1) is at most ``FitOptio
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import socket
+import time
 from pathlib import Path
 
+import filelock
 import numpy as np
 
 from ..atomic import atomic_outputs, save_figure, write_text
-from ..errors import InvalidArgumentError, NotPositiveError
+from ..errors import InvalidArgumentError, NotPositiveError, OutputError
 from ..outputs import ensure_directory
 from ..sphere.evaluate import sample_harmonic
 from . import plots
-from .checkpoint import options_dict, save_result
+from .checkpoint import claim_checkpoint, options_dict, save_result
 from .problem import CHI2_SIGMAS
 from .results import FitResult
 
-__all__ = ["summary", "write_result", "success_definition", "alignment_record", "surface_record", "rho_error"]
+__all__ = ["summary", "write_result", "success_definition", "alignment_record", "surface_record", "rho_error",
+           "claim_output", "OUTPUT_LOCK"]
+
+#: The lock file of a fit's output folder (held by :func:`claim_output` for the whole fit), and the file beside it
+#: that says who holds it.
+OUTPUT_LOCK = ".shspec-fit.lock"
+_OWNER = ".shspec-fit.owner"
 
 
 def alignment_record(result: FitResult) -> dict | None:
@@ -137,6 +148,54 @@ def rho_error(ident, surface: dict | None = None) -> dict:
         return {"value": float(ident.error_estimate), "meaning": "relative L2 error that the final residual leaves, "
                 "linearized (identifiability.estimated_error)"}
     return {"value": None, "meaning": "unknown: no residual or errors to judge by"}
+
+
+@contextlib.contextmanager
+def claim_output(directory, *, resume: bool = False, overwrite: bool = False):
+    """Hold the output folder of a fit for the whole fit: a context manager around the fit and
+    :func:`write_result`.
+
+    It creates ``directory`` if needed and takes its lock (:data:`OUTPUT_LOCK`, the cache's kind of lock: released
+    by the system when the process ends, however it ends); a second fit into the folder is refused at once, saying
+    which process holds it.  Under the lock it checks the folder's checkpoint (:func:`claim_checkpoint`, with
+    ``resume`` and ``overwrite``): a checkpoint there now is that of a fit that ended or died, never of a running
+    one.
+
+    Yields
+    ------
+    Path
+        The directory.
+
+    Raises
+    ------
+    OutputError
+        If ``directory`` is a file or cannot be created, or another fit holds it.
+    CheckpointError
+        As :func:`claim_checkpoint`.
+    """
+    out = ensure_directory(directory)
+    lock = filelock.FileLock(out / OUTPUT_LOCK, mode=0o644, thread_local=False)
+    try:
+        lock.acquire(timeout=0)
+    except filelock.Timeout:
+        try:
+            owner = (out / _OWNER).read_text(encoding="utf-8").strip()
+        except OSError:
+            owner = "a process that did not say which"
+        raise OutputError(f"another fit is writing into {out} ({owner}): wait for it to end, or give another "
+                          "output folder") from None
+    except OSError as exc:
+        raise OutputError(f"cannot lock the output folder {out}: {exc.strerror or exc}") from exc
+    try:
+        # said after the lock is held, in a file of its own: a waiting process's attempt empties the lock file
+        write_text(out / _OWNER, f"pid {os.getpid()} on {socket.gethostname()}, since "
+                                 f"{time.strftime('%Y-%m-%d %H:%M:%S')}\n")
+        claim_checkpoint(out / "checkpoint.h5", resume=resume, overwrite=overwrite)
+        yield out
+    finally:
+        with contextlib.suppress(OSError):
+            (out / _OWNER).unlink()
+        lock.release()
 
 
 #: What a fit writes into its folder but the model's own files: what a fit replaces there even when the folder's
