@@ -60,7 +60,9 @@ def _topology(args) -> int:
     how = "known" if est.area_known else f"fitted, ± {est.area_error:.3g}"
     print(f"target: {args.target}")
     print(f"eigenvalues used: {est.numeig}; window t in [{est.window[0]:.4g}, {est.window[1]:.4g}]")
-    print(f"area: {est.area:.6g} ({how}); Weyl's counting function: {est.weyl_area:.6g}")
+    weyl = est.weyl_area / est.area - 1
+    print(f"area: {est.area:.6g} ({how}); Weyl's law alone (N(lambda) ~ A lambda / 4 pi) would say "
+          f"{est.weyl_area:.6g}, {weyl:+.0%}: the heat trace's estimate is the one to use")
     print(f"Euler characteristic: {est.euler_characteristic:.3f} ± {est.euler_characteristic_error:.3f}")
     print(est.statement)
     return 0

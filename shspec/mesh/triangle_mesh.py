@@ -31,6 +31,17 @@ class TriangleMesh:
     ------
     MeshError
         If the arrays do not have these shapes, or an index is out of range.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.mesh import TriangleMesh
+    >>> tetra = TriangleMesh(np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], float),
+    ...                      np.array([[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]]))
+    >>> tetra
+    TriangleMesh(4 vertices, 4 faces)
+    >>> round(tetra.area(), 4)   # four equilateral faces of side 2√2
+    13.8564
     """
 
     vertices: np.ndarray
@@ -59,6 +70,10 @@ class TriangleMesh:
         f.setflags(write=False)
         object.__setattr__(self, "vertices", v)
         object.__setattr__(self, "faces", f)
+
+    def __repr__(self) -> str:
+        # the arrays run to thousands of rows: say what the mesh is instead
+        return f"TriangleMesh({self.nvertices} vertices, {self.nfaces} faces)"
 
     @property
     def nvertices(self) -> int:
