@@ -16,8 +16,6 @@ study = convergence(rho, [8, 12, 16, 20, 24], k=25)
 for row in study.table():
     print(f"Lb = {row['lmax']}: largest relative change against Lb = 24: {row['max_relative_change']:.1e}")
 
-fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+fig = plt.figure(figsize=(11, 4.4), layout="constrained")  # room for the map's title and colour bar
 rho.plot(ax=fig.add_subplot(1, 2, 1, projection="hammer"), title="rho of the boost k = 2")
-axes[0].remove()
-study.plot(ax=axes[1])
-fig.tight_layout()
+study.plot(ax=fig.add_subplot(1, 2, 2))
