@@ -361,7 +361,11 @@ def mesh_spectrum(mesh: TriangleMesh, k: int, mass: str = "lumped", *, whole_mul
     k : int
         Number of eigenpairs, 1 ≤ k < n.
     mass : {"lumped", "consistent"}
-        Mass matrix (:func:`~shspec.mesh.cotan.mass_matrix`).
+        Mass matrix (:func:`~shspec.mesh.cotan.mass_matrix`).  The lumped (diagonal, barycentric) mass is the
+        study's and the one every fit of shspec uses; LaPy's ``TriaMesh`` solver and many FEM codes use the
+        consistent mass, whose eigenvalues lie above the lumped ones (on the 642-vertex ``pebble``: 0.5 % at λ₁,
+        3.5 % at λ₁₀, 9.4 % at λ₃₀; less on finer meshes, as both converge to the surface's spectrum).  Compare
+        with LaPy with ``mass="consistent"``.
     whole_multiplets : bool, default True
         Return more than k pairs rather than cut a degenerate group (eigenvalues within
         ``options.multiplet_rtol``) at k.
@@ -371,6 +375,15 @@ def mesh_spectrum(mesh: TriangleMesh, k: int, mass: str = "lumped", *, whole_mul
     -------
     Spectrum
         Eigenvalues ascending in 1/(length unit)², eigenvectors (n, k') M-orthonormal, k' ≥ k.
+
+    Examples
+    --------
+    >>> from shspec.mesh import load_mesh, mesh_spectrum
+    >>> pebble = load_mesh("pebble")
+    >>> lumped = mesh_spectrum(pebble, 10).eigenvalues
+    >>> consistent = mesh_spectrum(pebble, 10, "consistent").eigenvalues
+    >>> bool((consistent[1:10] > lumped[1:10]).all()), round(float(consistent[9] / lumped[9] - 1), 3)
+    (True, 0.035)
 
     Raises
     ------
