@@ -252,7 +252,7 @@ def prepare_fit(target, **fields) -> FitPlan:
 
     >>> plan = prepare_fit("blob", lmax_factor=6, progress=False)
     >>> plan.choice("numeig").value, plan.choice("lmax").value
-    (122, 20)
+    (122, 29)
     """
     if isinstance(target, FitRequest):
         if fields:

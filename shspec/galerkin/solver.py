@@ -71,7 +71,8 @@ def spectrum(rho, lmax: int, k: int, *, lmax_factor: int | None = None, table: G
 
     Examples
     --------
-    >>> rho = ConformalFactor.mobius_boost(2.0, lmax=20)
+    >>> from shspec import ConformalFactor, spectrum
+    >>> rho = ConformalFactor.mobius_boost(2.0, lmax=20)   # isometric to the unit sphere: l(l + 1) exactly
     >>> spectrum(rho, lmax=20, k=9).eigenvalues.round(8)
     array([0., 2., 2., 2., 6., 6., 6., 6., 6.])
     """
