@@ -314,6 +314,14 @@ def read_spectrum(path) -> np.ndarray:
     ------
     InvalidArgumentError
         As :func:`read_spectrum_file`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.fitting import read_spectrum
+    >>> np.savetxt("round.txt", [0.0, 2.0, 2.0, 2.0, 6.0])
+    >>> read_spectrum("round.txt")
+    array([0., 2., 2., 2., 6.])
     """
     return read_spectrum_file(path).eigenvalues
 

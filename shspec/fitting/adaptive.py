@@ -61,6 +61,12 @@ class AdaptiveOptions:
     fit : FitOptions
         The options of every stage's fit (the first stage's schedule and starts; later stages start from the
         refined previous result in one stage).
+
+    Examples
+    --------
+    >>> from shspec.fitting import AdaptiveOptions
+    >>> AdaptiveOptions(subdivisions=1, nvertices=162).growth
+    1.3
     """
 
     subdivisions: int = 2
@@ -83,7 +89,19 @@ class AdaptiveOptions:
 
 @dataclass(frozen=True)
 class AdaptiveStage:
-    """One stage: the mesh size, the fit's residual and time, and the mesh's shape."""
+    """One stage: the mesh size, the fit's residual and time, and the mesh's shape.
+
+    Examples
+    --------
+    >>> from shspec.fitting import AdaptiveOptions, adaptive_fit, mesh_target
+    >>> from shspec.inverse import FitOptions
+    >>> from shspec.mesh.shapes import star_surface
+    >>> target = mesh_target(star_surface(2, 1, 0.3, 1), lmax=10, numeig=10, lmax_factor=4)
+    >>> quick = FitOptions(starts=1, max_iter=5, basin_hops=0, progress=False)
+    >>> stages = adaptive_fit(target, AdaptiveOptions(subdivisions=1, fit=quick)).stages
+    >>> stages[0].nvertices, stages[-1].nvertices     # from the icosphere to the target's own size
+    (42, 42)
+    """
 
     nvertices: int
     relative_residual: float
@@ -101,7 +119,21 @@ class AdaptiveStage:
 
 @dataclass(frozen=True)
 class AdaptiveResult:
-    """Result of :func:`adaptive_fit`: the stages, and the last stage's fit (its model holds the refined mesh)."""
+    """Result of :func:`adaptive_fit`: the stages, and the last stage's fit (its model holds the refined mesh).
+
+    Examples
+    --------
+    >>> from shspec.fitting import AdaptiveOptions, adaptive_fit, mesh_target
+    >>> from shspec.inverse import FitOptions
+    >>> from shspec.mesh.shapes import star_surface
+    >>> target = mesh_target(star_surface(2, 1, 0.3, 1), lmax=10, numeig=10, lmax_factor=4)
+    >>> quick = FitOptions(starts=1, max_iter=5, basin_hops=0, progress=False)
+    >>> result = adaptive_fit(target, AdaptiveOptions(subdivisions=1, nvertices=162, fit=quick))
+    >>> [stage.nvertices for stage in result.stages]
+    [42, 55, 72, 94, 122, 159, 162]
+    >>> result.result.model.nparams
+    162
+    """
 
     stages: tuple
     result: FitResult
@@ -125,6 +157,17 @@ def adaptive_fit(target: Target, options: AdaptiveOptions | None = None, *, log=
     Returns
     -------
     AdaptiveResult
+
+    Examples
+    --------
+    >>> from shspec.fitting import AdaptiveOptions, adaptive_fit, mesh_target
+    >>> from shspec.inverse import FitOptions
+    >>> from shspec.mesh.shapes import star_surface
+    >>> target = mesh_target(star_surface(2, 1, 0.3, 1), lmax=10, numeig=10, lmax_factor=4)
+    >>> quick = FitOptions(starts=1, max_iter=5, basin_hops=0, progress=False)
+    >>> result = adaptive_fit(target, AdaptiveOptions(subdivisions=1, nvertices=162, fit=quick))
+    >>> len(result.stages), result.result.model.nparams
+    (7, 162)
     """
     opt = check_options(options, AdaptiveOptions)
     if not isinstance(target, Target):

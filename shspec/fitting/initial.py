@@ -190,6 +190,17 @@ def read_initial(path, model) -> np.ndarray:
     ------
     InvalidArgumentError, NotPositiveError
         If the file cannot be read, or does not fit the model.
+
+    Examples
+    --------
+    >>> import json
+    >>> from shspec import LogHarmonicModel
+    >>> from shspec.fitting import blob_factor, read_initial
+    >>> with open("summary.json", "w") as f:          # a fit's summary holds rho's cilm, whatever its model
+    ...     json.dump({"cilm": blob_factor().to_cilm().tolist()}, f)
+    >>> u = read_initial("summary.json", LogHarmonicModel(12, 8))   # converted to log rho of degree 8
+    >>> u.shape
+    (81,)
     """
     value, kind = read_parameters(path, "a starting point")
     return initial_parameters(value, kind, model, name=str(path))
@@ -203,6 +214,15 @@ def read_truth(path) -> ConformalFactor:
     ------
     InvalidArgumentError, NotPositiveError
         If the file cannot be read, holds no harmonic ρ, or its ρ is not positive.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.fitting import blob_factor, read_truth
+    >>> np.save("truth.npy", blob_factor().coefficients)
+    >>> truth = read_truth("truth.npy")
+    >>> truth.name, truth.lmax
+    ('truth (truth.npy)', 6)
     """
     value, kind = read_parameters(path, "the true rho")
     if kind == "log-rho":

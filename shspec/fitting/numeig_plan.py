@@ -150,6 +150,15 @@ class NumeigPlan:
     identified : int or None
         The K that meets the accuracy; ``numeig`` is larger where :func:`plan_fit` asks for more for its search
         (:data:`SEARCH_NUMEIG_FACTOR`).  None: equal to ``numeig``.
+
+    Examples
+    --------
+    >>> from shspec.fitting import plan_numeig
+    >>> plan = plan_numeig(3, noise=1e-6, accuracy=1e-3)
+    >>> plan.numeig, plan.lmax, plan.lmax_factor
+    (20, 11, 3)
+    >>> plan.statement().split(":")[0]
+    'K = 20 eigenvalues determine rho of degree 3 with noise gain 2.3e+02'
     """
 
     numeig: int | None
@@ -220,6 +229,13 @@ def plan_numeig(lmax_factor: int, reference=None, *, candidates=None, noise: flo
     ------
     InvalidArgumentError
         For bad degrees, tolerances or candidates, or a reference of the wrong size.
+
+    Examples
+    --------
+    >>> from shspec.fitting import plan_numeig
+    >>> plan = plan_numeig(3, noise=1e-6, accuracy=1e-3)   # eigenvalues to 1e-6, rho to 1e-3
+    >>> plan.numeig, plan.lmax
+    (20, 11)
     """
     la = check_int(lmax_factor, "lmax_factor", minimum=2)
     noise = check_float(noise, "noise", positive=True)
@@ -266,6 +282,13 @@ def plan_fit(lmax_factor: int, reference=None, options: FitOptions | None = None
         As in :func:`plan_numeig`.
     options : FitOptions, optional
         The fit's options (default ``FitOptions()``).
+
+    Examples
+    --------
+    >>> from shspec.fitting import plan_fit
+    >>> plan = plan_fit(3)            # what shspec fit plans for a rho of degree 3
+    >>> plan.numeig, plan.identified, plan.lmax   # 2.5 per coefficient, more than the 20 identified
+    (40, 20, 17)
     """
     options = FitOptions() if options is None else options
     la = check_int(lmax_factor, "lmax_factor", minimum=2)

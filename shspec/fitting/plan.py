@@ -71,7 +71,15 @@ MESH_REG = 0.05
 
 @dataclass(frozen=True)
 class Choice:
-    """One planned setting: its name, value and why."""
+    """One planned setting: its name, value and why.
+
+    Examples
+    --------
+    >>> from shspec.fitting import prepare_fit
+    >>> plan = prepare_fit("blob", lmax_factor=6, lmax=12, numeig=40, progress=False)
+    >>> plan.choice("numeig")
+    Choice(name='numeig', value=40, reason='as asked')
+    """
 
     name: str
     value: object

@@ -68,6 +68,12 @@ class RecursiveOptions:
         Fit s = log c (``MeshModel(transform="exp")``).
     reg_kind : str
         The mesh regularizer (:data:`~shspec.mesh.model.REGULARIZER_KINDS`).
+
+    Examples
+    --------
+    >>> from shspec.fitting import RecursiveOptions
+    >>> RecursiveOptions(passes=2).passes
+    2
     """
 
     passes: int = 2
@@ -110,6 +116,17 @@ class RefinementPass:
         Why the fit stopped.
     cpu_seconds : float
         CPU time of the pass.
+
+    Examples
+    --------
+    >>> from shspec.fitting import RecursiveOptions, mesh_target, recursive_fit
+    >>> from shspec.inverse import FitOptions
+    >>> from shspec.mesh.shapes import star_surface
+    >>> target = mesh_target(star_surface(2, 1, 0.3, 1), lmax=10, numeig=10, lmax_factor=4)
+    >>> quick = FitOptions(starts=1, max_iter=5, basin_hops=0, progress=False)
+    >>> first = recursive_fit(target, options=RecursiveOptions(passes=1, fit=quick)).passes[0]
+    >>> first.sphere.nvertices, first.hausdorff_relative < 0.2
+    (42, True)
     """
 
     sphere: TriangleMesh = field(repr=False)
@@ -125,7 +142,19 @@ class RefinementPass:
 
 @dataclass(frozen=True)
 class RecursiveResult:
-    """Result of :func:`recursive_fit`: the passes in order."""
+    """Result of :func:`recursive_fit`: the passes in order.
+
+    Examples
+    --------
+    >>> from shspec.fitting import RecursiveOptions, mesh_target, recursive_fit
+    >>> from shspec.inverse import FitOptions
+    >>> from shspec.mesh.shapes import star_surface
+    >>> target = mesh_target(star_surface(2, 1, 0.3, 1), lmax=10, numeig=10, lmax_factor=4)
+    >>> quick = FitOptions(starts=1, max_iter=5, basin_hops=0, progress=False)
+    >>> result = recursive_fit(target, options=RecursiveOptions(passes=2, fit=quick))
+    >>> len(result.passes), result.final is result.passes[-1]
+    (2, True)
+    """
 
     passes: tuple
 
@@ -156,6 +185,17 @@ def recursive_fit(target, sphere: TriangleMesh | None = None, options: Recursive
     ------
     InvalidArgumentError
         No sphere given and the target has none; wrong types.
+
+    Examples
+    --------
+    >>> from shspec.fitting import RecursiveOptions, mesh_target, recursive_fit
+    >>> from shspec.inverse import FitOptions
+    >>> from shspec.mesh.shapes import star_surface
+    >>> target = mesh_target(star_surface(2, 1, 0.3, 1), lmax=10, numeig=10, lmax_factor=4)
+    >>> quick = FitOptions(starts=1, max_iter=5, basin_hops=0, progress=False)
+    >>> result = recursive_fit(target, options=RecursiveOptions(passes=2, fit=quick))
+    >>> [p.sphere.nvertices for p in result.passes]   # each pass fits on the last surface's cMCF sphere
+    [42, 42]
     """
     opt = check_options(options, RecursiveOptions)
     if not isinstance(target, Target):

@@ -85,6 +85,13 @@ class FitRequest:
         A Dask scheduler's address.
     progress : bool
         Show what the planning and the fit do on stderr.
+
+    Examples
+    --------
+    >>> from shspec.fitting import FitRequest, prepare_fit
+    >>> request = FitRequest("blob", lmax_factor=6, lmax=12, numeig=40, progress=False)
+    >>> request.is_mesh, prepare_fit(request).model.describe()
+    (False, 'harmonic Lb=12 La=6')
     """
 
     target: object

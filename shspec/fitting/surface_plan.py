@@ -117,6 +117,14 @@ class SurfacePlan:
         The errors a fit of degree La should be held to: √(σ_i² + δ_i²), the target's own errors σ_i and the misfit
         δ_i = |λ_i(reference) − λ*_i| of the reference on the basis Lb (the floor seen in the spectrum: no ρ of
         degree La need match the target closer than the best expansion does).
+
+    Examples
+    --------
+    >>> from shspec.fitting import mesh_target, plan_surface_fit, refined_target
+    >>> from shspec.mesh.shapes import star_surface
+    >>> plan = plan_surface_fit(refined_target(mesh_target(star_surface(2, 1, 0.3, 1), 10, 30, 4)))
+    >>> plan.lmax_factor, plan.numeig, plan.lmax, plan.feasible, plan.diagnosis()
+    (2, 7, 5, True, None)
     """
 
     lmax_factor: int
@@ -248,6 +256,17 @@ def plan_surface_fit(target: MeshTarget, *, accuracy: float = DEFAULT_ACCURACY, 
     ------
     InvalidArgumentError
         For a target without cMCF factors or errors, or too few eigenvalues for any candidate.
+
+    Examples
+    --------
+    >>> from shspec.fitting import mesh_target, plan_surface_fit, refined_target
+    >>> from shspec.mesh.shapes import star_surface
+    >>> target = refined_target(mesh_target(star_surface(2, 1, 0.3, 1), lmax=10, numeig=30, lmax_factor=4))
+    >>> plan = plan_surface_fit(target)
+    >>> plan.lmax_factor, plan.numeig, round(plan.predicted, 3)
+    (2, 7, 0.028)
+    >>> plan.fitted_target(target).numeig
+    7
     """
     if not isinstance(target, MeshTarget):
         raise InvalidArgumentError(f"plan_surface_fit needs a MeshTarget (a mesh's spectrum with its cMCF factors), "

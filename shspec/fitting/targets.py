@@ -64,7 +64,16 @@ TARGET_SOURCES = ("pl", "cmcf", "harmonic")
 
 
 def blob_factor(lmax: int = 6) -> ConformalFactor:
-    """The built-in blob ρ (:data:`BLOB_HARMONIC`), zero-padded to degree ``lmax`` ≥ 6."""
+    """The built-in blob ρ (:data:`BLOB_HARMONIC`), zero-padded to degree ``lmax`` ≥ 6.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.fitting import blob_factor
+    >>> rho = blob_factor()
+    >>> rho.lmax, round(rho.area / (4 * np.pi), 12)     # degree 6, the unit sphere's area
+    (6, 1.0)
+    """
     lmax = check_int(lmax, "lmax (the blob has degree 6)", minimum=6)
     a = np.zeros(ncoeffs(lmax))
     for (l, m), value in BLOB_HARMONIC.items():
@@ -121,7 +130,15 @@ class MeshTarget(Target):
 
 
 def harmonic_target(rho, lmax: int, numeig: int, *, name: str | None = None) -> Target:
-    """The first ``numeig`` Galerkin eigenvalues of a harmonic ρ at basis band limit ``lmax``."""
+    """The first ``numeig`` Galerkin eigenvalues of a harmonic ρ at basis band limit ``lmax``.
+
+    Examples
+    --------
+    >>> from shspec.fitting import blob_factor, harmonic_target
+    >>> target = harmonic_target(blob_factor(), lmax=10, numeig=16)
+    >>> target.numeig, target.source, target.eigenvalues[:4].round(4)
+    (16, 'harmonic', array([0.    , 1.8044, 1.9847, 2.2321]))
+    """
     factor = rho if isinstance(rho, ConformalFactor) else ConformalFactor(rho)
     model = HarmonicModel(lmax, factor.lmax)
     lam = model.spectrum(factor, numeig).eigenvalues
@@ -257,6 +274,16 @@ def refined_target(target: Target, fine=None) -> Target:
     ------
     InvalidArgumentError
         For a target without a mesh spectrum, or ``fine`` of the wrong shape.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.fitting import mesh_target, refined_target
+    >>> from shspec.mesh.shapes import star_surface
+    >>> coarse = mesh_target(star_surface(2, 1, 0.3, 1), lmax=10, numeig=12, lmax_factor=4)
+    >>> fine = refined_target(coarse)        # two subdivisions, Richardson-extrapolated
+    >>> fine.numeig, bool(np.all(fine.errors[1:] > 0)), bool(np.all(fine.errors[1:] < 0.1 * fine.eigenvalues[1:]))
+    (12, True, True)
     """
     fine = np.atleast_2d(np.asarray(subdivision_spectra(target) if fine is None else fine, dtype=float))
     if fine.shape[1] != target.numeig or fine.shape[0] not in (1, 2):
@@ -282,6 +309,16 @@ def with_discretization_errors(target: Target, changes=None) -> Target:
     ------
     InvalidArgumentError
         For a target without a mesh spectrum.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.fitting import mesh_target, with_discretization_errors
+    >>> from shspec.mesh.shapes import star_surface
+    >>> target = with_discretization_errors(mesh_target(star_surface(2, 1, 0.3, 2), lmax=10, numeig=12,
+    ...                                                  lmax_factor=4))
+    >>> bool(np.all(target.errors[1:] > 0)), target.errors[0]
+    (True, 0.0)
     """
     changes = subdivision_changes(target) if changes is None else np.asarray(changes, dtype=float)
     return dataclasses.replace(target, errors=np.maximum(RICHARDSON_FACTOR * changes, 1e-12) * target.eigenvalues)
@@ -290,7 +327,17 @@ def with_discretization_errors(target: Target, changes=None) -> Target:
 def spectrum_target(path, numeig: int | None = None) -> Target:
     """A target read from a spectrum file (:func:`shspec.spectrum_file.read_spectrum_file`: every format of that
     module), its first ``numeig`` eigenvalues (λ₀ = 0 included; default and cap: all of them), with their errors when
-    the file has an error column; area and truth unknown."""
+    the file has an error column; area and truth unknown.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.fitting import blob_factor, harmonic_target, spectrum_target
+    >>> np.savetxt("blob.txt", harmonic_target(blob_factor(), lmax=10, numeig=16).eigenvalues)
+    >>> target = spectrum_target("blob.txt", numeig=9)
+    >>> target.name, target.numeig, target.errors is None, target.area is None
+    ('blob', 9, True, True)
+    """
     data = read_spectrum_file(path)
     target = Target(Path(path).stem, data.eigenvalues, errors=data.errors)
     if numeig is None:
@@ -342,6 +389,13 @@ def parse_target(text: str, *, lmax: int, numeig: int, lmax_factor: int, source:
         Spectrum of mesh targets (star, mesh), see :data:`TARGET_SOURCES`.
     subdivisions : int
         Icosphere subdivisions of star surfaces.
+
+    Examples
+    --------
+    >>> from shspec.fitting import parse_target
+    >>> star = parse_target("star:2,1,0.3", lmax=10, numeig=20, lmax_factor=4, subdivisions=1)
+    >>> type(star).__name__, star.name, star.numeig, star.mesh
+    ('MeshTarget', 'star(2,1,0.3)', 20, TriangleMesh(42 vertices, 80 faces))
     """
     if not isinstance(text, str):
         raise InvalidArgumentError(f"a target is a string, got {text!r}")
