@@ -320,6 +320,18 @@ def save_result(path, result) -> Path:
     ------
     CheckpointError
         If the file cannot be written.
+
+    Examples
+    --------
+    >>> from shspec import HarmonicModel
+    >>> from shspec.fitting import blob_factor, harmonic_target
+    >>> from shspec.inverse import FitOptions, fit, load_result_summary, save_result
+    >>> result = fit(harmonic_target(blob_factor().truncated(2), 10, 16), HarmonicModel(10, 2),
+    ...              FitOptions(starts=1, max_iter=20, basin_hops=0, progress=False))
+    >>> save_result("result.h5", result).name
+    'result.h5'
+    >>> load_result_summary("result.h5")["model"]
+    'harmonic Lb=10 La=2'
     """
     def write(f):
         f.attrs["format"] = CHECKPOINT_FORMAT
@@ -358,6 +370,17 @@ def load_result_summary(path) -> dict:
     ------
     CheckpointError
         If the file cannot be read or is damaged (its checksum does not match).
+
+    Examples
+    --------
+    >>> from shspec import HarmonicModel
+    >>> from shspec.fitting import blob_factor, harmonic_target
+    >>> from shspec.inverse import FitOptions, fit, load_result_summary, save_result
+    >>> result = fit(harmonic_target(blob_factor().truncated(2), 10, 16), HarmonicModel(10, 2),
+    ...              FitOptions(starts=1, max_iter=20, basin_hops=0, progress=False))
+    >>> stored = load_result_summary(save_result("result.h5", result))
+    >>> sorted(stored), (stored["solution"] == result.best.params).all()
+    (['model', 'options', 'solution', 'starts', 'target'], True)
     """
     f = _open_checked(path, "result file")
     try:

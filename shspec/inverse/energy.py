@@ -38,6 +38,13 @@ def eigenvalue_weights(target, kind: str = "relative", errors=None) -> np.ndarra
     Returns
     -------
     (k,) array
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.inverse import eigenvalue_weights
+    >>> eigenvalue_weights(np.array([0.0, 2.0, 6.0]), "relative")   # 1 / lambda^2; lambda_0 carries none
+    array([0.        , 0.25      , 0.02777778])
     """
     lam = np.asarray(target, dtype=float)
     if lam.ndim != 1 or lam.size < 2 or not np.all(np.isfinite(lam)):
@@ -69,7 +76,16 @@ def _relative_errors(eigenvalues, target) -> np.ndarray:
 
 
 def relative_residual(eigenvalues, target) -> float:
-    """max_{i≥1} |λ_i − λ*_i| / λ*_i of two (k,) arrays."""
+    """max_{i≥1} |λ_i − λ*_i| / λ*_i of two (k,) arrays.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.inverse import relative_residual
+    >>> target = np.array([0.0, 2.0, 6.0])
+    >>> round(relative_residual(np.array([0.0, 2.002, 5.994]), target), 6)   # the largest, over i >= 1
+    0.001
+    """
     return float(np.max(_relative_errors(eigenvalues, target)))
 
 
@@ -123,6 +139,18 @@ class Objective:
     -----
     :meth:`evaluate` raises :class:`~shspec.errors.NotPositiveError` where ρ ≤ 0 somewhere (c ≤ 0 at a vertex);
     the optimizers treat that as an infinitely bad point and shorten or reject the step.
+
+    Examples
+    --------
+    >>> from shspec import HarmonicModel
+    >>> from shspec.fitting import blob_factor, harmonic_target
+    >>> from shspec.inverse import Objective, Parametrization, eigenvalue_weights
+    >>> model, rho = HarmonicModel(10, 2), blob_factor().truncated(2)
+    >>> lam = harmonic_target(rho, 10, 16).eigenvalues
+    >>> x = Parametrization.at(rho.coefficients, model.free_parameters(False))
+    >>> objective = Objective(model, lam, eigenvalue_weights(lam, "relative"), x)
+    >>> objective.nfree, objective.evaluate(objective.initial()).energy < 1e-20   # the truth: zero energy
+    (5, True)
     """
 
     def __init__(self, model: SpectralModel, target, weights, parametrization: Parametrization, reg: float = 0.0):

@@ -42,6 +42,17 @@ def distinct_solutions(starts: list, model: SpectralModel, tol: float) -> list:
     Two starts are the same solution when their energies agree to ``tol`` relative (or both are below 1e-20) and
     their invariants (:meth:`~shspec.spectral_model.SpectralModel.invariant`: per-degree power for harmonic fits, the
     factors for meshes) agree to ``tol`` relative.
+
+    Examples
+    --------
+    >>> from shspec import HarmonicModel
+    >>> from shspec.fitting import blob_factor, harmonic_target
+    >>> from shspec.inverse import FitOptions, distinct_solutions, fit
+    >>> model = HarmonicModel(10, 2)
+    >>> result = fit(harmonic_target(blob_factor().truncated(2), 10, 16), model,
+    ...              FitOptions(starts=2, max_iter=20, basin_hops=0, stop_at_success=False, progress=False))
+    >>> distinct_solutions(result.starts, model, 1e-4)   # both starts found the same rho
+    [0]
     """
     if not starts:
         raise InvalidArgumentError("no starts to compare")

@@ -120,6 +120,13 @@ class FitOptions:
         the stage, the starts done, the successes, the elapsed and the estimated remaining time, and one line per
         finished stage, hop and start.  On by default, in Python as on the command line: a fit takes seconds to
         minutes, and silence for that long reads as a hang.
+
+    Examples
+    --------
+    >>> from shspec.inverse import FitOptions
+    >>> options = FitOptions(starts=2, seed=7)
+    >>> options.starts, options.stop_at_success, options.success_tol
+    (2, True, 1e-10)
     """
 
     optimizer: str | None = None

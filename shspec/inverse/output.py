@@ -93,7 +93,19 @@ def success_definition(result: FitResult) -> str:
 
 
 def summary(result: FitResult) -> dict:
-    """The JSON-ready summary of a fit (module notes)."""
+    """The JSON-ready summary of a fit (module notes).
+
+    Examples
+    --------
+    >>> from shspec import HarmonicModel
+    >>> from shspec.fitting import blob_factor, harmonic_target
+    >>> from shspec.inverse import FitOptions, fit, summary
+    >>> result = fit(harmonic_target(blob_factor().truncated(2), 10, 16), HarmonicModel(10, 2),
+    ...              FitOptions(starts=1, max_iter=20, basin_hops=0, progress=False))
+    >>> s = summary(result)
+    >>> s["successes"], s["model"], s["alignment"]["relative_error"] < 1e-8
+    (1, 'harmonic Lb=10 La=2', True)
+    """
     if not isinstance(result, FitResult):
         raise InvalidArgumentError(f"expected a FitResult, got {type(result).__name__}")
     best, target, opt = result.best, result.target, result.options
@@ -222,6 +234,18 @@ def write_result(result: FitResult, directory, *, figures: bool = True) -> Path:
     OutputError
         If a file cannot be written (a full disk, a file-size limit, a read-only folder): the folder is then as it
         was.
+
+    Examples
+    --------
+    >>> import os
+    >>> from shspec import HarmonicModel
+    >>> from shspec.fitting import blob_factor, harmonic_target
+    >>> from shspec.inverse import FitOptions, fit, write_result
+    >>> result = fit(harmonic_target(blob_factor().truncated(2), 10, 16), HarmonicModel(10, 2),
+    ...              FitOptions(starts=1, max_iter=20, basin_hops=0, progress=False))
+    >>> out = write_result(result, "fit", figures=False)
+    >>> sorted(name for name in os.listdir(out) if not name.startswith("."))
+    ['result.h5', 'summary.json']
     """
     out = ensure_directory(directory)
     with atomic_outputs(out, replaces=FIT_OUTPUTS) as files:

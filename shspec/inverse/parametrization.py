@@ -32,6 +32,14 @@ class Parametrization:
         Indices of the free variables, ascending.
     transform : {"identity", "exp"}
         p = u, or p = exp(u).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.inverse import Parametrization
+    >>> p = Parametrization.at(np.array([1.0, 2.0, 3.0]), free=[0, 2])
+    >>> p.nfree, p.params(np.array([5.0, 6.0]))   # entry 1 stays fixed
+    (2, array([5., 2., 6.]))
     """
 
     base: np.ndarray

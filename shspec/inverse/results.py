@@ -50,6 +50,17 @@ class StartResult:
     work : float
         The start's work (:mod:`~shspec.inverse.race`): iterations and move solves weighted by their stage's cost,
         the same on any machine; it decides which success a fit reports.
+
+    Examples
+    --------
+    >>> from shspec import HarmonicModel
+    >>> from shspec.fitting import blob_factor, harmonic_target
+    >>> from shspec.inverse import FitOptions, fit
+    >>> result = fit(harmonic_target(blob_factor().truncated(2), 10, 16), HarmonicModel(10, 2),
+    ...              FitOptions(starts=1, max_iter=20, basin_hops=0, progress=False))
+    >>> start = result.starts[0]
+    >>> start.index, start.status, start.success, start.relative_residual < 1e-10
+    (0, 'residual_tol', True, True)
     """
 
     index: int
@@ -87,6 +98,18 @@ class FitResult:
     plan : dict
         What the fit's plan chose and why, JSON-ready (:meth:`shspec.fitting.FitPlan.record`); part of the
         summary.  Empty for a fit that was not planned.
+
+    Examples
+    --------
+    >>> from shspec import HarmonicModel
+    >>> from shspec.fitting import blob_factor, harmonic_target
+    >>> from shspec.inverse import FitOptions, fit
+    >>> target = harmonic_target(blob_factor().truncated(2), 10, 16)
+    >>> result = fit(target, HarmonicModel(10, 2), FitOptions(starts=1, max_iter=20, basin_hops=0, progress=False))
+    >>> result.success_count, result.best.index, result.factor().lmax
+    (1, 0, 2)
+    >>> result.alignment().relative_error < 1e-8        # against the target's truth, after Moebius and O(3)
+    True
     """
 
     starts: list

@@ -37,6 +37,12 @@ class Stage:
     hops : bool
         Run the basin hops (:attr:`FitOptions.basin_hops`) at the end of this stage too, not only after the last
         one: a global search while the problem is small and its moves are cheap (see :func:`degree_ramp`).
+
+    Examples
+    --------
+    >>> from shspec.inverse import Stage
+    >>> Stage(lmax_factor=6, numeig=64, hops=True)
+    Stage(lmax_factor=6, numeig=64, max_iter=None, hops=True)
     """
 
     lmax_factor: int | None = None
@@ -60,6 +66,14 @@ def parse_schedule(text: str) -> tuple[Stage, ...]:
     ------
     InvalidArgumentError
         If an entry is not ``L`` or ``L:K`` with integers, optionally followed by ``h``.
+
+    Examples
+    --------
+    >>> from shspec.inverse import parse_schedule
+    >>> [(s.lmax_factor, s.numeig, s.hops) for s in parse_schedule("2,4,6")]
+    [(2, None, False), (4, None, False), (6, None, False)]
+    >>> [(s.lmax_factor, s.numeig, s.hops) for s in parse_schedule("6:16,6:64h")]   # L:K, h: hop there
+    [(6, 16, False), (6, 64, True)]
     """
     if not isinstance(text, str) or not text.strip():
         raise InvalidArgumentError(f"a schedule is a comma-separated list like '2,4,8,15', got {text!r}")
@@ -108,6 +122,12 @@ def numeig_ramp(numeig: int, lmax_factor: int | None = None, first: int = 16) ->
         Degree of every stage (harmonic fits); None: the model's.
     first : int
         Eigenvalues of the first stage.
+
+    Examples
+    --------
+    >>> from shspec.inverse import numeig_ramp
+    >>> [s.numeig for s in numeig_ramp(40)]
+    [16, 36, 40]
     """
     numeig, first = check_int(numeig, "numeig", minimum=2), check_int(first, "first", minimum=2)
     ks, j = [], int(np.ceil(np.sqrt(first)))
@@ -146,6 +166,12 @@ def degree_ramp(numeig: int, lmax_factor: int, stage_max_iter: int | None = None
         match ``numeig`` eigenvalues or more.  Fits of degree 10 or more hop at degree 6 by default
         (:data:`DEFAULT_HOP_DEGREE`, :data:`HOP_FIT_DEGREE`).  The hops cost time where the stage cannot reach a
         zero residual (a regularized fit, a ρ of higher degree).
+
+    Examples
+    --------
+    >>> from shspec.inverse import degree_ramp
+    >>> [(s.lmax_factor, s.numeig) for s in degree_ramp(40, 6)]   # (L + 1)^2 eigenvalues per degree, then all
+    [(2, 16), (3, 25), (4, 36), (6, 40)]
     """
     numeig, lmax_factor = check_int(numeig, "numeig", minimum=2), check_int(lmax_factor, "lmax_factor", minimum=2)
     stage_max_iter = check_int(stage_max_iter, "stage_max_iter", allow_none=True, minimum=1)
@@ -168,6 +194,13 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
 
     The stages of the degree ramp but the last are capped at :data:`DEFAULT_STAGE_MAX_ITER` iterations; how often
     each schedule succeeds, measured, is in the user guide's inverse page (:doc:`/guide/inverse`).
+
+    Examples
+    --------
+    >>> from shspec import HarmonicModel
+    >>> from shspec.inverse import default_schedule
+    >>> [(s.lmax_factor, s.numeig) for s in default_schedule(HarmonicModel(12, 6), 40)][:2]   # the degree ramp
+    [(2, 16), (3, 25)]
     """
     levels = model.levels()
     if not levels:
