@@ -155,6 +155,13 @@ def convergence(rho, lmax_values, k: int, *, lmax_factor: int | None = None, cac
         Eigenvalues per spectrum.
     lmax_factor : int, optional
         Truncate ρ to this La (default: its band limit, capped at 2·min(Lb)).
+
+    Examples
+    --------
+    >>> from shspec import ConformalFactor, convergence
+    >>> study = convergence(ConformalFactor.mobius_boost(2.0, lmax=16), [8, 12, 16], k=9)
+    >>> [row["lmax"] for row in study.table()]
+    [8, 12, 16]
     """
     factor = as_factor(rho)
     values = _check_values(lmax_values, "lmax")
@@ -171,6 +178,14 @@ def convergence_in_factor(rho, lmax_factor_values, lmax: int, k: int, *, cache_d
 
     This measures how many coefficients of ρ the first k eigenvalues depend on.  Each truncation must stay
     positive (a :class:`NotPositiveError` names the first that does not).
+
+    Examples
+    --------
+    >>> from shspec import ConformalFactor, convergence_in_factor
+    >>> rho = ConformalFactor.mobius_boost(1.5, lmax=16)
+    >>> study = convergence_in_factor(rho, [4, 8, 12, 16], lmax=20, k=9)   # rho cut at La, one basis
+    >>> len(study.table())
+    4
     """
     factor = as_factor(rho)
     values = _check_values(lmax_factor_values, "lmax_factor")

@@ -89,6 +89,14 @@ class LogHarmonicModel(SpectralModel):
     ------
     InvalidArgumentError, BandLimitError, ResourceLimitError
         As :class:`~shspec.galerkin.model.HarmonicModel` for the mass model (Lb, 2·Lb).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec import LogHarmonicModel
+    >>> model = LogHarmonicModel(12, 4)
+    >>> model.eigenvalues(np.zeros(model.nparams), 4).round(8)   # log rho = 0: the unit sphere
+    array([0., 2., 2., 2.])
     """
 
     default_optimizer = "lm"

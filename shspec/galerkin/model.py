@@ -77,6 +77,13 @@ class SpectrumResult(Spectrum):
         from :func:`spectrum`, which no solve warm-starts from.
     solver : str
         How it was solved: 'evr' or 'evd' (the cold LAPACK driver), 'warm' (certified Rayleigh–Ritz), '' (k = 1).
+
+    Examples
+    --------
+    >>> from shspec import ConformalFactor, spectrum
+    >>> result = spectrum(ConformalFactor.mobius_boost(2.0, lmax=20), lmax=20, k=4)
+    >>> type(result).__name__, result.eigenvalues.round(6), result.eigenvectors.shape
+    ('SpectrumResult', array([0., 2., 2., 2.]), (441, 4))
     """
 
     lmax: int = 0
@@ -112,6 +119,15 @@ class HarmonicModel(SpectralModel):
     ResourceLimitError
         The table, its plan and the two dense N × N matrices of a solve would not fit in the available memory
         (:mod:`shspec.resources`); checked before anything is allocated or built.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec import HarmonicModel
+    >>> model = HarmonicModel(12, 4)                 # basis degree Lb = 12, rho of degree La = 4
+    >>> rho = np.zeros(model.nparams); rho[0] = np.sqrt(4 * np.pi)   # rho = 1: the unit sphere
+    >>> model.describe(), model.eigenvalues(rho, 4).round(10)
+    ('harmonic Lb=12 La=4', array([0., 2., 2., 2.]))
     """
 
     def __init__(self, lmax: int, lmax_factor: int, *, table: GauntTable | None = None, cache_dir=None,

@@ -466,6 +466,13 @@ def get_table(lmax: int, lmax_factor: int, *, cache_dir: str | os.PathLike | Non
     ResourceLimitError
         Building the table would need more memory than is available or more disk than is free (checked first;
         the message says which band limits fit).
+
+    Examples
+    --------
+    >>> from shspec import get_table
+    >>> table = get_table(4, 2)
+    >>> (table.lmax, table.lmax_factor)
+    (4, 2)
     """
     directory = cache_dir
     lmax, lmax_factor = check_limits(lmax, lmax_factor)

@@ -117,6 +117,13 @@ def real_gaunt(l1: int, m1: int, l2: int, m2: int, l3: int, m3: int) -> float:
     float
         The coefficient (dimensionless: the harmonics are orthonormal on the unit sphere).  Exactly 0.0 when a
         selection rule fails (see the module docstring).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec import real_gaunt
+    >>> round(real_gaunt(0, 0, 0, 0, 0, 0) * np.sqrt(4 * np.pi), 15)   # the integral of Y00^3 is 1/sqrt(4 pi)
+    1.0
     """
     vals = []
     for name, v in (("l1", l1), ("m1", m1), ("l2", l2), ("m2", m2), ("l3", l3), ("m3", m3)):

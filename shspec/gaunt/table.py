@@ -318,6 +318,13 @@ class GauntTable:
         File the table was loaded from, if any.
     metadata : dict
         Provenance (creation time, library version, checksum) when loaded from or saved to a file.
+
+    Examples
+    --------
+    >>> from shspec import get_table
+    >>> table = get_table(4, 2)            # built once, then read from the cache
+    >>> type(table).__name__, table.lmax, table.lmax_factor
+    ('GauntTable', 4, 2)
     """
 
     lmax: int

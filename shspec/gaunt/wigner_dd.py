@@ -283,6 +283,12 @@ def wigner3j(l1: int, l2: int, l3: int, m1: int, m2: int, m3: int) -> float:
     InvalidArgumentError
         An argument that is not an integer (half-integer spins are not supported), a negative degree (as
         :func:`~shspec.gaunt.real_gaunt.real_gaunt` refuses), or one that exceeds 2 × MAX_DEGREE.
+
+    Examples
+    --------
+    >>> from shspec import wigner3j
+    >>> round(wigner3j(1, 1, 0, 0, 0, 0), 15)    # -1/sqrt(3)
+    -0.577350269189626
     """
     args = [_check_int(n, v) for n, v in zip(("l1", "l2", "l3", "m1", "m2", "m3"), (l1, l2, l3, m1, m2, m3))]
     for name, l in zip(("l1", "l2", "l3"), args[:3]):

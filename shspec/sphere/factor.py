@@ -129,6 +129,16 @@ class ConformalFactor:
         Truncate or zero-pad to this band limit La.
     name : str
         A label used in plots and result files.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec import ConformalFactor
+    >>> rho = ConformalFactor.mobius_boost(2.0, lmax=20)   # isometric to the unit sphere
+    >>> rho.lmax, round(rho.area / (4 * np.pi), 10)
+    (20, 1.0)
+    >>> round(rho.check_positive().value, 3)      # its minimum: positive, a metric
+    0.25
     """
 
     def __init__(self, coefficients, lmax: int | None = None, *, name: str = "rho"):

@@ -44,13 +44,27 @@ def check_degree(value, name: str, *, minimum: int = 0, maximum: int = MAX_DEGRE
 
 
 def ncoeffs(lmax: int) -> int:
-    """Number of real harmonics of degree <= lmax, ``(lmax+1)**2``."""
+    """Number of real harmonics of degree <= lmax, ``(lmax+1)**2``.
+
+    Examples
+    --------
+    >>> from shspec import ncoeffs
+    >>> ncoeffs(3)          # (L + 1)^2 coefficients up to degree 3
+    16
+    """
     lmax = check_degree(lmax, "lmax")
     return (lmax + 1) ** 2
 
 
 def flat_index(l, m):
-    """Flat index ``l*l + l + m`` of the harmonic (l, m); works elementwise on arrays."""
+    """Flat index ``l*l + l + m`` of the harmonic (l, m); works elementwise on arrays.
+
+    Examples
+    --------
+    >>> from shspec import flat_index
+    >>> flat_index(2, -1)   # l*l + l + m
+    5
+    """
     l = real_array(l, "l")
     m = real_array(m, "m")
     if np.any(l != np.round(l)) or np.any(m != np.round(m)):
@@ -70,6 +84,12 @@ def degree_order(lmax: int) -> tuple[np.ndarray, np.ndarray]:
     Returns
     -------
     l, m : (N,) int64 arrays, N = (lmax+1)**2, with ``flat_index(l, m) == arange(N)``.
+
+    Examples
+    --------
+    >>> from shspec import degree_order
+    >>> degree_order(1)
+    (array([0, 1, 1, 1]), array([ 0, -1,  0,  1]))
     """
     lmax = check_degree(lmax, "lmax")
     l = np.repeat(np.arange(lmax + 1), 2 * np.arange(lmax + 1) + 1)
@@ -91,7 +111,16 @@ def lmax_of_size(n: int) -> int:
 
 
 def vector_to_cilm(a) -> np.ndarray:
-    """Flat coefficient vector (N,) -> pyshtools array cilm (2, L+1, L+1)."""
+    """Flat coefficient vector (N,) -> pyshtools array cilm (2, L+1, L+1).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec import vector_to_cilm
+    >>> cilm = vector_to_cilm(np.arange(9.0))   # pyshtools' layout: [cos/sin, l, m]
+    >>> cilm.shape, cilm[0, 2, 1], cilm[1, 2, 1]   # a_{2,1} and a_{2,-1}
+    ((2, 3, 3), 7.0, 5.0)
+    """
     a = _finite_vector(a, "coefficient vector")
     lmax = lmax_of_size(a.size)
     l, m = degree_order(lmax)
@@ -103,7 +132,16 @@ def vector_to_cilm(a) -> np.ndarray:
 
 
 def cilm_to_vector(cilm, lmax: int | None = None) -> np.ndarray:
-    """pyshtools array cilm (2, L+1, L+1) -> flat coefficient vector (N,), truncated or zero-padded to lmax."""
+    """pyshtools array cilm (2, L+1, L+1) -> flat coefficient vector (N,), truncated or zero-padded to lmax.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec import cilm_to_vector, vector_to_cilm
+    >>> a = np.arange(9.0)
+    >>> bool(np.array_equal(cilm_to_vector(vector_to_cilm(a)), a))
+    True
+    """
     cilm = real_array(cilm, "cilm")
     if cilm.ndim != 3 or cilm.shape[0] != 2 or cilm.shape[1] != cilm.shape[2]:
         raise InvalidArgumentError(f"a cilm array has shape (2, L+1, L+1), got {cilm.shape}")
@@ -127,7 +165,16 @@ def cilm_to_vector(cilm, lmax: int | None = None) -> np.ndarray:
 
 
 def vector_to_shcoeffs(a) -> pyshtools.SHCoeffs:
-    """Flat coefficient vector -> ``pyshtools.SHCoeffs`` with normalization 'ortho' and csphase 1."""
+    """Flat coefficient vector -> ``pyshtools.SHCoeffs`` with normalization 'ortho' and csphase 1.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec import vector_to_shcoeffs
+    >>> coeffs = vector_to_shcoeffs(np.arange(9.0))
+    >>> type(coeffs).__name__, coeffs.normalization, coeffs.csphase
+    ('SHRealCoeffs', 'ortho', 1)
+    """
     return pyshtools.SHCoeffs.from_array(vector_to_cilm(a), normalization="ortho", csphase=1)
 
 
