@@ -74,6 +74,13 @@ def build_table(lmax: int, lmax_factor: int, *, progress: bool = False) -> "Gaun
     Returns
     -------
     GauntTable
+
+    Examples
+    --------
+    >>> from shspec.gaunt import build_table, table_size
+    >>> table = build_table(4, 2)          # in memory; get_table caches it
+    >>> table.lmax, table.lmax_factor, table_size(4, 2)
+    (4, 2, 99)
     """
     lmax, lmax_factor = check_limits(lmax, lmax_factor)
     off = _block_offsets(lmax, lmax_factor)

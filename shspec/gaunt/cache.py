@@ -70,7 +70,14 @@ _NAME = re.compile(r"^gaunt_Lb(\d+)_La(\d+)\.h5$")
 
 def cache_dir(path: str | os.PathLike | None = None) -> Path:
     """The cache directory to use: ``path``, else ``$SHSPEC_CACHE``, else the ``cache/`` folder of the checkout the
-    current directory lies in, else ``$XDG_CACHE_HOME/shspec`` (~/.cache/shspec); see the module notes."""
+    current directory lies in, else ``$XDG_CACHE_HOME/shspec`` (~/.cache/shspec); see the module notes.
+
+    Examples
+    --------
+    >>> from shspec.gaunt import cache_dir
+    >>> cache_dir("tables").name          # created if needed
+    'tables'
+    """
     return cache_dir_source(path)[0]
 
 
@@ -105,7 +112,14 @@ def cache_dir_source(path: str | os.PathLike | None = None) -> tuple[Path, str]:
 
 
 def table_path(lmax: int, lmax_factor: int, directory: str | os.PathLike | None = None) -> Path:
-    """Path of the file holding the table (Lb, La) in the cache directory."""
+    """Path of the file holding the table (Lb, La) in the cache directory.
+
+    Examples
+    --------
+    >>> from shspec.gaunt import table_path
+    >>> table_path(4, 2, "tables").name
+    'gaunt_Lb4_La2.h5'
+    """
     lmax, lmax_factor = check_limits(lmax, lmax_factor)
     return cache_dir(directory) / f"gaunt_Lb{lmax}_La{lmax_factor}.h5"
 
@@ -167,6 +181,13 @@ def save_table(table: GauntTable, directory: str | os.PathLike | None = None, *,
     """Write ``table`` to the cache atomically, under the table's lock; returns the path.
 
     An existing file is replaced only once the new one is complete and synced (see :mod:`shspec.atomic`).
+
+    Examples
+    --------
+    >>> from shspec.gaunt import build_table, save_table, table_path
+    >>> path = save_table(build_table(4, 2), "tables")    # atomically, with a checksum
+    >>> path == table_path(4, 2, "tables")
+    True
     """
     directory = ensure_cache_dir(cache_dir(directory))
     path = table_path(table.lmax, table.lmax_factor, directory)
@@ -324,6 +345,13 @@ def list_tables(directory: str | os.PathLike | None = None, *, verify: bool = Fa
     ------
     CacheLocationError
         The location exists and is not a directory.
+
+    Examples
+    --------
+    >>> from shspec.gaunt import build_table, list_tables, save_table
+    >>> _ = save_table(build_table(4, 2), "tables")
+    >>> [(info.lmax, info.lmax_factor) for info in list_tables("tables")]
+    [(4, 2)]
     """
     directory = cache_dir(directory)
     out = []
@@ -411,6 +439,13 @@ def load_table(lmax: int, lmax_factor: int, directory: str | os.PathLike | None 
         No cached table covers (Lb, La).
     CorruptTableError, TableMismatchError
         The exact file exists but is damaged or of another format; it is never used silently.
+
+    Examples
+    --------
+    >>> from shspec.gaunt import build_table, load_table, save_table
+    >>> _ = save_table(build_table(4, 2), "tables")
+    >>> load_table(4, 2, "tables").lmax      # validated on load: a damaged file is refused
+    4
     """
     lmax, lmax_factor = check_limits(lmax, lmax_factor)
     path = table_path(lmax, lmax_factor, directory)
@@ -513,6 +548,12 @@ def verify_table(table: GauntTable, samples: int = 2000, seed: int = 0) -> float
 
     Each sample is one plan entry (a real pair i <= j and an order m3) and one degree l3 of its family, recomputed
     with :func:`shspec.real_gaunt`.
+
+    Examples
+    --------
+    >>> from shspec.gaunt import build_table, verify_table
+    >>> verify_table(build_table(4, 2), samples=100) < 1e-13   # largest error against an independent quadrature
+    True
     """
     plan = table.plan
     n = plan.i.size

@@ -104,7 +104,14 @@ def _block_offsets(lmax, lmax_factor):
 
 
 def table_size(lmax: int, lmax_factor: int) -> int:
-    """Number of stored values of the table (Lb, La)."""
+    """Number of stored values of the table (Lb, La).
+
+    Examples
+    --------
+    >>> from shspec.gaunt import table_size
+    >>> table_size(4, 2)                   # nonzero real Gaunt coefficients of the table (Lb, La)
+    99
+    """
     lmax, lmax_factor = check_limits(lmax, lmax_factor)
     return int(_block_offsets(lmax, lmax_factor)[lmax, lmax + 1])
 

@@ -244,6 +244,13 @@ def wigner3j_family(j2: int, j3: int, m2: int, m3: int) -> tuple[int, np.ndarray
     Computed in double-double (:func:`family_into_dd`) and rounded: every nonzero symbol with l ≤ 60 to ≤ 1e-13
     relative (measured ≤ 5e-16), exact zeros as 0.0; see docs/wigner_accuracy.md for larger l.  Cost ~7 µs per
     family at l ≤ 60; when an absolute error of 2e-14 × max|w| is enough, :func:`family_into` is 6–10× faster.
+
+    Examples
+    --------
+    >>> from shspec.gaunt import wigner3j_family
+    >>> j1_min, values = wigner3j_family(1, 1, 0, 0)    # (j1 1 1; 0 0 0) for j1 = 0, 1, 2
+    >>> j1_min, values.round(6)
+    (0, array([-0.57735 ,  0.      ,  0.365148]))
     """
     j2, j3, m2, m3 = (_check_int(n, v) for n, v in (("j2", j2), ("j3", j3), ("m2", m2), ("m3", m3)))
     if j2 < 0 or j3 < 0:
