@@ -172,6 +172,14 @@ def mesh_target(mesh, lmax: int, numeig: int, lmax_factor: int, *, source: str =
     InvalidArgumentError
         If ``mesh`` is not a TriangleMesh, ``source`` is unknown, or ``flow`` is not a CMCFResult of this mesh's
         faces.
+
+    Examples
+    --------
+    >>> from shspec.fitting import mesh_target
+    >>> from shspec.mesh import load_mesh
+    >>> target = mesh_target(load_mesh("pebble"), lmax=12, numeig=20, lmax_factor=4)
+    >>> target.numeig, target.source, target.truth.lmax       # its cotan spectrum; the cMCF factors, expanded
+    (20, 'pl', 4)
     """
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")

@@ -44,6 +44,14 @@ class HarmonicFit:
         "lsq" or "quadrature".
     residual : float
         Relative area-weighted L2 misfit ‖f − Σ a_k Y_k‖ / ‖f‖ at the vertices (lumped sphere areas).
+
+    Examples
+    --------
+    >>> from shspec.mesh import blob, cmcf, fit_harmonic
+    >>> flow = cmcf(blob(2))
+    >>> fit = fit_harmonic(flow.sphere, flow.factors, 4)
+    >>> fit.lmax, fit.method
+    (4, 'lsq')
     """
 
     coefficients: np.ndarray
@@ -79,6 +87,14 @@ def fit_harmonic(sphere: TriangleMesh, values, lmax: int, method: str = "lsq") -
     InvalidArgumentError
         If the values have the wrong shape or are not finite, the method is unknown, or lmax is too large for
         the number of vertices.
+
+    Examples
+    --------
+    >>> from shspec.mesh import blob, cmcf, fit_harmonic
+    >>> flow = cmcf(blob(2))
+    >>> expansion = fit_harmonic(flow.sphere, flow.factors, 4)   # the factors in harmonics of degree <= 4
+    >>> expansion.coefficients.shape, expansion.residual < 0.05
+    ((25,), True)
     """
     if not isinstance(sphere, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(sphere).__name__}")

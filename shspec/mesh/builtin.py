@@ -21,6 +21,12 @@ def builtin_mesh_path(name: str) -> Path:
     ------
     KeyError
         If ``name`` is not a shipped mesh.
+
+    Examples
+    --------
+    >>> from shspec.mesh import builtin_mesh_path
+    >>> builtin_mesh_path("pebble").name
+    'pebble.obj'
     """
     if name not in BUILTIN_MESHES:
         raise KeyError(name)

@@ -66,6 +66,13 @@ class CMCFOptions:
         Refactor the preconditioner when CG needed more iterations than this.
     validate : bool
         Validate the input mesh first (:func:`~shspec.mesh.validate.validate_mesh`).
+
+    Examples
+    --------
+    >>> from shspec.mesh import CMCFOptions, blob, cmcf
+    >>> flow = cmcf(blob(2), CMCFOptions(max_iter=50))
+    >>> flow.iterations <= 50
+    True
     """
 
     step: float = 1000.0
@@ -120,6 +127,15 @@ class CMCFResult:
     stop_reason : str
         Why the flow stopped: "tolerance" (roundness ≤ tol), "stalled" (the roundness stopped improving above tol:
         the rounder sphere this mesh allows, see ``stall_iterations``) or "max_iter".
+
+    Examples
+    --------
+    >>> from shspec.mesh import blob, cmcf
+    >>> flow = cmcf(blob(2))
+    >>> flow.sphere, flow.success, flow.roundness < 0.02
+    (TriangleMesh(162 vertices, 320 faces), True, True)
+    >>> round(float(flow.factors.min()), 2), round(float(flow.factors.max()), 2)   # area ratios per vertex
+    (0.73, 1.87)
     """
 
     sphere: TriangleMesh
@@ -140,6 +156,13 @@ def roundness(vertices, weights) -> float:
     """max_i | |x_i − x̄| / r̄ − 1 | for vertices (n, 3).
 
     x̄ and r̄ are the centroid and the mean radius weighted by ``weights`` (n,), e.g. the vertex areas.
+
+    Examples
+    --------
+    >>> from shspec.mesh import icosphere, roundness, vertex_areas
+    >>> sphere = icosphere(2)
+    >>> roundness(sphere.vertices, vertex_areas(sphere)) < 1e-12   # its vertices lie on a sphere
+    True
     """
     x = np.asarray(vertices, dtype=float)
     w = np.asarray(weights, dtype=float)
@@ -222,6 +245,13 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
         :data:`SIZE_RANGE`.
     ConvergenceError
         If Möbius centering fails (the flow itself reports failure through ``success``).
+
+    Examples
+    --------
+    >>> from shspec.mesh import blob, cmcf
+    >>> flow = cmcf(blob(2))                 # the blob flowed onto the unit sphere, conformally
+    >>> flow.sphere.nvertices, flow.factors.shape
+    (162, (162,))
     """
     opt = check_options(options, CMCFOptions)
     if not isinstance(mesh, TriangleMesh):

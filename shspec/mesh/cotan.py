@@ -39,6 +39,13 @@ def cotan_stiffness(mesh: TriangleMesh) -> sp.csr_matrix:
     -------
     scipy.sparse.csr_matrix
         L with L_ij = −½(cot α_ij + cot β_ij) for an edge ij, L_ii = −Σ_j L_ij, zero elsewhere.
+
+    Examples
+    --------
+    >>> from shspec.mesh import cotan_stiffness, icosphere
+    >>> L = cotan_stiffness(icosphere(2))
+    >>> L.shape, abs(L.sum()) < 1e-12          # (n, n), constants in its kernel
+    ((162, 162), True)
     """
     mesh = _mesh(mesh)
     p = mesh.vertices[mesh.faces]
@@ -59,7 +66,16 @@ def cotan_stiffness(mesh: TriangleMesh) -> sp.csr_matrix:
 
 
 def vertex_areas(mesh: TriangleMesh) -> np.ndarray:
-    """(n,) array of lumped vertex areas: one third of the area of each incident face (length unit squared)."""
+    """(n,) array of lumped vertex areas: one third of the area of each incident face (length unit squared).
+
+    Examples
+    --------
+    >>> from shspec.mesh import icosphere, vertex_areas
+    >>> sphere = icosphere(2)
+    >>> areas = vertex_areas(sphere)          # a third of each face's area at each of its vertices
+    >>> areas.shape, round(areas.sum(), 6) == round(sphere.area(), 6)
+    ((162,), True)
+    """
     mesh = _mesh(mesh)
     third = np.repeat(mesh.face_areas() / 3.0, 3)
     return np.bincount(mesh.faces.ravel(), weights=third, minlength=mesh.nvertices)
@@ -84,6 +100,13 @@ def mass_matrix(mesh: TriangleMesh, kind: str = "lumped") -> sp.csr_matrix:
     ------
     InvalidArgumentError
         If ``kind`` is not one of :data:`MASS_KINDS`.
+
+    Examples
+    --------
+    >>> from shspec.mesh import icosphere, mass_matrix
+    >>> sphere = icosphere(2)
+    >>> round(mass_matrix(sphere).sum(), 6) == round(sphere.area(), 6)   # either kind sums to the area
+    True
     """
     mesh = _mesh(mesh)
     check_choice(kind, "mass kind", MASS_KINDS)

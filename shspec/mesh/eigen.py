@@ -80,6 +80,13 @@ class EigenOptions:
         any k whose Krylov basis is expected to fill the space (2.8k + 60 ≥ n).
     seed : int
         Seed of the random start block, for reproducible eigenvectors.
+
+    Examples
+    --------
+    >>> from shspec.mesh import EigenOptions, icosphere, mesh_spectrum
+    >>> options = EigenOptions(tol=1e-10)
+    >>> mesh_spectrum(icosphere(2), 4, options=options).eigenvalues.size
+    4
     """
 
     sigma: float | None = None
@@ -198,6 +205,13 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
         Bad shapes, k out of range.
     ConvergenceError
         If the Krylov basis reaches ``max_dim`` before k + 1 pairs converge.
+
+    Examples
+    --------
+    >>> from shspec.mesh import cotan_stiffness, eigenpairs, icosphere, mass_matrix
+    >>> sphere = icosphere(2)
+    >>> abs(eigenpairs(cotan_stiffness(sphere), mass_matrix(sphere), 4).eigenvalues.round(2))  # l(l+1), nearly
+    array([0., 2., 2., 2.])
     """
     n, k = _check_pencil(L, M, k)
     opt = check_options(options, EigenOptions)

@@ -25,7 +25,14 @@ __all__ = ["implicit_surface", "ring_chain", "euler_characteristic"]
 
 
 def euler_characteristic(mesh: TriangleMesh) -> int:
-    """V − E + F of a triangle mesh (2 − 2g for a closed connected orientable surface of genus g)."""
+    """V − E + F of a triangle mesh (2 − 2g for a closed connected orientable surface of genus g).
+
+    Examples
+    --------
+    >>> from shspec.mesh import euler_characteristic, icosphere, ring_chain
+    >>> euler_characteristic(icosphere(1)), euler_characteristic(ring_chain([(0, 0)], spacing=0.12))
+    (2, 0)
+    """
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
     f = mesh.faces
@@ -76,6 +83,14 @@ def implicit_surface(func, bounds, spacing: float, *, relax: int = 10) -> Triang
         If the bounds or spacing are not usable.
     MeshError
         If func is not negative somewhere and positive on the box's boundary (the surface would be open or empty).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.mesh import euler_characteristic, implicit_surface
+    >>> ball = implicit_surface(lambda p: np.linalg.norm(p, axis=1) - 1.0, ((-1.3,) * 3, (1.3,) * 3), 0.2)
+    >>> euler_characteristic(ball)
+    2
     """
     from skimage.measure import marching_cubes
 
@@ -137,6 +152,12 @@ def ring_chain(centers, major: float = 1.0, minor: float = 0.4, spacing: float =
     -------
     TriangleMesh
         A closed outward-oriented surface of genus len(centers) (check it with :func:`euler_characteristic`).
+
+    Examples
+    --------
+    >>> from shspec.mesh import euler_characteristic, ring_chain
+    >>> euler_characteristic(ring_chain([(0, 0), (2.2, 0)], spacing=0.12))   # two fused rings: genus 2
+    -2
     """
     c = np.asarray(centers, dtype=float)
     if c.ndim != 2 or c.shape[1] != 2 or c.shape[0] < 1 or not np.all(np.isfinite(c)):

@@ -61,6 +61,12 @@ def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None
     trimesh is called with ``process=False`` so that vertices are neither merged nor reordered.  STL stores
     triangles without shared vertices, so for STL coincident vertices are merged (trimesh's ``process=True``);
     otherwise every STL file would load as a soup of disconnected triangles.
+
+    Examples
+    --------
+    >>> from shspec.mesh import load_mesh
+    >>> load_mesh("pebble")                 # a shipped mesh by name, or any .obj/.ply/.off/.stl path
+    TriangleMesh(642 vertices, 1280 faces)
     """
     if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
         raise InvalidArgumentError(f"a mesh file is a non-empty path, got {path!r}")
@@ -115,6 +121,13 @@ def save_mesh(mesh: TriangleMesh, path) -> Path:
         If ``mesh`` is not a TriangleMesh, ``path`` is not a path or the suffix is unsupported.
     OutputError
         If the file cannot be written (:func:`shspec.atomic.atomic_output`: the previous file is then intact).
+
+    Examples
+    --------
+    >>> from shspec.mesh import icosphere, load_mesh, save_mesh
+    >>> path = save_mesh(icosphere(2), "ico.obj")
+    >>> load_mesh(path)
+    TriangleMesh(162 vertices, 320 faces)
     """
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")

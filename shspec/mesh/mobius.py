@@ -29,6 +29,14 @@ class MeshCentering:
         Final centre of mass Σ w_i x_i / Σ w_i (its norm is the residual).
     iterations : int
         Newton steps taken.
+
+    Examples
+    --------
+    >>> from shspec.mesh import blob, center_mesh, cmcf, vertex_areas
+    >>> flow = cmcf(blob(2))
+    >>> centred = center_mesh(flow.sphere, flow.factors * vertex_areas(flow.sphere))
+    >>> centred.sphere.nvertices, centred.center.shape
+    (162, (3,))
     """
 
     sphere: TriangleMesh
@@ -62,6 +70,14 @@ def center_mesh(sphere: TriangleMesh, weights, *, tol: float = 1e-12, max_iter: 
         If a weight is ≤ 0.
     ConvergenceError
         If the tolerance is not met after ``max_iter`` steps.
+
+    Examples
+    --------
+    >>> from shspec.mesh import center_mesh, icosphere, vertex_areas
+    >>> sphere = icosphere(2)
+    >>> centred = center_mesh(sphere, vertex_areas(sphere))   # already centred: no Moebius map needed
+    >>> abs(centred.center).max() < 1e-12, centred.iterations
+    (True, 0)
     """
     if not isinstance(sphere, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(sphere).__name__}")

@@ -73,6 +73,14 @@ def plot_hammer(sphere: TriangleMesh, values, *, ax=None, cmap: str = "viridis",
     Notes
     -----
     Faces that straddle the ±180° meridian are drawn on both sides of the map, each copy clipped at the edge.
+
+    Examples
+    --------
+    >>> from shspec.mesh import icosphere, plot_hammer
+    >>> sphere = icosphere(2)
+    >>> fig = plot_hammer(sphere, sphere.vertices[:, 2], title="z", label="height")
+    >>> type(fig).__name__
+    'Figure'
     """
     import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm, Normalize

@@ -45,6 +45,13 @@ def icosphere(subdivisions: int = 3) -> TriangleMesh:
     subdivisions : int, default 3
         Number s of 4-to-1 subdivisions of the icosahedron, 0..7 (s = 3: 642 vertices, s = 4: 2562, s = 5: 10242,
         s = 6: 40962).
+
+    Examples
+    --------
+    >>> from shspec.mesh import icosphere
+    >>> sphere = icosphere(2)
+    >>> sphere, round(sphere.area(), 3)       # a little under 4 pi: the faces are flat
+    (TriangleMesh(162 vertices, 320 faces), 12.33)
     """
     s = _subdivisions(subdivisions)
     m = trimesh.creation.icosphere(subdivisions=s, radius=1.0)
@@ -74,6 +81,12 @@ def star_surface(l: int, m: int, p: float, subdivisions: int = 4) -> TriangleMes
     -------
     TriangleMesh
         Vertex i at (1 + p |Y_l^m(u_i)|) u_i, u_i the icosphere's vertex i.
+
+    Examples
+    --------
+    >>> from shspec.mesh import star_surface
+    >>> star_surface(3, 3, 0.4, 2)             # r = 1 + 0.4 |Y_3^3| over an icosphere
+    TriangleMesh(162 vertices, 320 faces)
     """
     l, m = check_int(l, "l"), check_int(m, "m", minimum=None)
     if l < 0 or abs(m) > l:
@@ -91,6 +104,13 @@ def blob(subdivisions: int = 4) -> TriangleMesh:
     """The "blob" benchmark surface r(u) = 1 + Σ c_lm Y_lm(u) with :data:`BLOB_COEFFICIENTS` (degree ≤ 4).
 
     Smooth, asymmetric and star-shaped; vertex i sits over the icosphere's vertex i.
+
+    Examples
+    --------
+    >>> from shspec.mesh import blob, euler_characteristic
+    >>> surface = blob(2)
+    >>> surface, euler_characteristic(surface)
+    (TriangleMesh(162 vertices, 320 faces), 2)
     """
     sub = _subdivisions(subdivisions)
     u = icosphere(sub).vertices

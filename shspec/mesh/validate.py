@@ -74,6 +74,20 @@ def validate_mesh(mesh: TriangleMesh, *, genus0: bool = True) -> TriangleMesh:
     ------
     MeshError
         On the first failed check, with the offending vertex, face, edge or count in the message.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec import MeshError
+    >>> from shspec.mesh import TriangleMesh, icosphere, validate_mesh
+    >>> sphere = icosphere(1)
+    >>> validate_mesh(sphere) is sphere
+    True
+    >>> try:
+    ...     validate_mesh(TriangleMesh(sphere.vertices, sphere.faces[1:]))   # a hole
+    ... except MeshError:
+    ...     print("refused")
+    refused
     """
     if not isinstance(mesh, TriangleMesh):
         raise MeshError(f"expected a TriangleMesh, got {type(mesh).__name__}")
