@@ -51,6 +51,12 @@ class AmbiguityOptions:
         Ambiguous when rms_mirrored ≤ max(rms_original (1 + rtol), rms_original + atol).  The default atol = 0.5 %
         strain is the level at which the cMCF factors of a 642-vertex blob reproduce the true surface's own edge
         lengths: differences below it are not evidence either way.
+
+    Examples
+    --------
+    >>> from shspec.embed import AmbiguityOptions
+    >>> AmbiguityOptions(max_caps=2).max_caps
+    2
     """
 
     min_area: float = 0.003
@@ -88,6 +94,12 @@ class Cap:
         RMS relative edge strain of the surface after relaxing, as embedded and with the cap mirrored.
     ambiguous : bool
         The mirrored cap fits the lengths about as well (see :class:`AmbiguityOptions`).
+
+    Examples
+    --------
+    >>> from shspec.embed import Cap
+    >>> sorted(Cap.__dataclass_fields__)
+    ['ambiguous', 'area_fraction', 'kind', 'rms_mirrored', 'rms_original', 'vertices']
     """
 
     vertices: np.ndarray = field(repr=False)
@@ -110,6 +122,15 @@ class AmbiguityReport:
         Caps found with an area fraction in range (more than were tested if > ``max_caps``).
     ambiguous : bool
         Some tested cap is ambiguous.
+
+    Examples
+    --------
+    >>> from shspec.embed import detect_ambiguity, embed
+    >>> from shspec.mesh import blob, cmcf
+    >>> flow = cmcf(blob(2))
+    >>> report = detect_ambiguity(flow.sphere, embed(flow.sphere, flow.factors))
+    >>> type(report).__name__, report.candidates >= len(report.caps)
+    ('AmbiguityReport', True)
     """
 
     caps: tuple
@@ -118,7 +139,16 @@ class AmbiguityReport:
 
 
 def angle_defects(mesh: TriangleMesh) -> np.ndarray:
-    """Discrete Gaussian curvature 2π − Σ (corner angles), (n,) radians, at each vertex of a closed mesh."""
+    """Discrete Gaussian curvature 2π − Σ (corner angles), (n,) radians, at each vertex of a closed mesh.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.embed import angle_defects
+    >>> from shspec.mesh import icosphere
+    >>> round(angle_defects(icosphere(1)).sum() / (4 * np.pi), 6)   # Gauss-Bonnet: 2 pi chi
+    1.0
+    """
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
     p = mesh.vertices[mesh.faces]
@@ -172,6 +202,15 @@ def detect_ambiguity(sphere: TriangleMesh, result: EmbedResult, options: Ambigui
     Returns
     -------
     AmbiguityReport
+
+    Examples
+    --------
+    >>> from shspec.embed import AmbiguityOptions, detect_ambiguity, embed
+    >>> from shspec.mesh import blob, cmcf
+    >>> flow = cmcf(blob(2))
+    >>> report = detect_ambiguity(flow.sphere, embed(flow.sphere, flow.factors), AmbiguityOptions(max_caps=2))
+    >>> report.ambiguous, len(report.caps) <= 2
+    (False, True)
     """
     opt = check_options(options, AmbiguityOptions)
     eopt = check_options(embed_options, EmbedOptions, "embed_options")

@@ -34,6 +34,14 @@ def continuation_schedule(factors, steps: int | None = None, *, max_log_step: fl
     -------
     (K,) array
         t_k = k / K.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.embed import continuation_schedule
+    >>> schedule = continuation_schedule(np.array([1.0, 10.0, 100.0]))   # exponents t: the factors grow as c**t
+    >>> float(schedule[-1]), bool(np.all(np.diff(schedule) > 0))
+    (1.0, True)
     """
     c = np.asarray(factors, dtype=float)
     if c.ndim != 1 or c.size == 0 or not np.all(np.isfinite(c)) or np.any(c <= 0):

@@ -49,6 +49,14 @@ class SurfaceDistance:
         Aligned by Procrustes on corresponding vertices (else by ICP).
     samples : int
         Points sampled per surface.
+
+    Examples
+    --------
+    >>> from shspec.embed import surface_distance
+    >>> from shspec.mesh import blob, icosphere
+    >>> d = surface_distance(icosphere(2), blob(2))
+    >>> d.transform.shape, d.hausdorff_relative > d.chamfer_relative
+    ((4, 4), True)
     """
 
     hausdorff: float
@@ -92,6 +100,17 @@ def rigid_align(surface: TriangleMesh, target: TriangleMesh, *, reflection: bool
         Homogeneous matrix to apply to ``surface``'s vertices.
     correspondence : bool
         True if the meshes have the same faces and the transform is Procrustes on the vertices.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.embed import rigid_align
+    >>> from shspec.mesh import blob
+    >>> surface = blob(2)
+    >>> moved = surface.with_vertices(surface.vertices + [1.0, 2.0, 3.0])
+    >>> transform, reflected = rigid_align(moved, surface)   # a 4 x 4 matrix, and whether it mirrors
+    >>> bool(np.allclose(transform[:3, 3], [-1.0, -2.0, -3.0], atol=1e-6))
+    True
     """
     if not isinstance(surface, TriangleMesh) or not isinstance(target, TriangleMesh):
         raise InvalidArgumentError("surface and target must be TriangleMesh objects")
@@ -169,6 +188,16 @@ def surface_distance(surface: TriangleMesh, target: TriangleMesh, *, reflection:
     Returns
     -------
     SurfaceDistance
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.embed import surface_distance
+    >>> from shspec.mesh import blob
+    >>> surface = blob(2)
+    >>> turned = surface.with_vertices(surface.vertices @ np.diag([1.0, -1.0, 1.0]) + 5.0)   # mirrored, moved
+    >>> surface_distance(turned, surface).hausdorff_relative < 1e-6   # rigid motions and reflections do not count
+    True
     """
     samples = check_int(samples, "samples", minimum=100)
     T, corr = rigid_align(surface, target, reflection=reflection, samples=samples, seed=seed)

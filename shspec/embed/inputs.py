@@ -36,6 +36,16 @@ def vertex_factors(sphere: TriangleMesh, factors) -> np.ndarray:
         Not numeric, or a length that is neither n nor a square.
     NotPositiveError
         ρ ≤ 0 at some vertex (a band-limited expansion of extreme factors can be).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec import ConformalFactor
+    >>> from shspec.embed import vertex_factors
+    >>> from shspec.mesh import icosphere
+    >>> a = np.zeros(4); a[0] = np.sqrt(4 * np.pi)    # rho = 1, as harmonic coefficients
+    >>> vertex_factors(icosphere(1), ConformalFactor(a))[:3].round(12)
+    array([1., 1., 1.])
     """
 
     sphere = check_sphere(sphere)

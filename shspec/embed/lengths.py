@@ -84,7 +84,15 @@ def check_factors(factors, n: int) -> np.ndarray:
 
 
 def mesh_edges(mesh: TriangleMesh) -> np.ndarray:
-    """Unique undirected edges (E, 2), int64, each as (i, j) with i < j, sorted lexicographically."""
+    """Unique undirected edges (E, 2), int64, each as (i, j) with i < j, sorted lexicographically.
+
+    Examples
+    --------
+    >>> from shspec.embed import mesh_edges
+    >>> from shspec.mesh import icosphere
+    >>> mesh_edges(icosphere(1)).shape          # E = 3F/2 on a closed mesh
+    (120, 2)
+    """
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
     f = mesh.faces
@@ -109,6 +117,15 @@ def smooth_factors(sphere: TriangleMesh, factors, alpha: float) -> np.ndarray:
     -------
     (n,) array
         exp(2 u_s) with (M + α L M⁻¹ L) u_s = M u, u = ½ log c.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.embed import smooth_factors
+    >>> from shspec.mesh import icosphere
+    >>> sphere = icosphere(1)
+    >>> smooth_factors(sphere, np.ones(sphere.nvertices), 0.1)[:3]   # constants stay constant
+    array([1., 1., 1.])
     """
     sphere = check_sphere(sphere)
     c = check_factors(factors, sphere.nvertices)
@@ -140,6 +157,17 @@ def target_edge_lengths(sphere: TriangleMesh, factors, edges: np.ndarray | None 
     -------
     (E,) array
         Target lengths in the target's length unit.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.embed import mesh_edges, target_edge_lengths
+    >>> from shspec.mesh import icosphere
+    >>> sphere = icosphere(1)
+    >>> edges = mesh_edges(sphere)
+    >>> doubled = target_edge_lengths(sphere, np.full(sphere.nvertices, 4.0), edges)   # factors 4: lengths x 2
+    >>> bool(np.allclose(doubled, 2 * target_edge_lengths(sphere, np.ones(sphere.nvertices), edges)))
+    True
     """
     sphere = check_sphere(sphere)
     c = check_factors(factors, sphere.nvertices)

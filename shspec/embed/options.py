@@ -58,6 +58,15 @@ class EmbedOptions:
         Most CG iterations per step.
     check_intersections : bool
         Count self-intersections in the result (O(m log m), a few seconds at 10⁵ faces).
+
+    Examples
+    --------
+    >>> from shspec.embed import EmbedOptions, embed
+    >>> from shspec.mesh import blob, cmcf
+    >>> flow = cmcf(blob(2))
+    >>> result = embed(flow.sphere, flow.factors, EmbedOptions(final_iterations=20, check_intersections=False))
+    >>> result.self_intersections            # -1: not checked
+    -1
     """
 
     steps: int | None = None
@@ -137,6 +146,15 @@ class EmbedResult:
         μ at the end.
     factorizations : int
         Sparse factorizations of the preconditioner (once per continuation step, and when μ moved by more than 4×).
+
+    Examples
+    --------
+    >>> from shspec.embed import embed
+    >>> from shspec.mesh import blob, cmcf
+    >>> flow = cmcf(blob(2))
+    >>> result = embed(flow.sphere, flow.factors)
+    >>> result.mesh, result.edge_error_rms < 0.01, result.converged
+    (TriangleMesh(162 vertices, 320 faces), True, True)
     """
 
     mesh: TriangleMesh

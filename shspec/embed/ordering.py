@@ -30,6 +30,17 @@ def nested_dissection(points: np.ndarray, pattern: sp.spmatrix, leaf: int = 64) 
     -------
     (n,) int array
         A permutation: ``order[k]`` is the vertex eliminated k-th.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import scipy.sparse as sp
+    >>> from shspec.embed import nested_dissection
+    >>> from shspec.mesh import cotan_stiffness, icosphere
+    >>> sphere = icosphere(2)
+    >>> order = nested_dissection(sphere.vertices, cotan_stiffness(sphere), leaf=16)
+    >>> sorted(order.tolist()) == list(range(sphere.nvertices))     # a permutation of the vertices
+    True
     """
     points = np.asarray(points, dtype=float)
     P = sp.csr_matrix(pattern)

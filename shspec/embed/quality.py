@@ -38,6 +38,17 @@ def edge_length_error(mesh: TriangleMesh, edges: np.ndarray, lengths: np.ndarray
     -------
     rms, max : float
         √(mean_e r_e²) and max_e |r_e| with r_e = |x_i − x_j| / ℓ'_e − 1 (dimensionless).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.embed import edge_length_error, mesh_edges
+    >>> from shspec.mesh import icosphere
+    >>> sphere = icosphere(1)
+    >>> edges = mesh_edges(sphere)
+    >>> lengths = np.linalg.norm(sphere.vertices[edges[:, 0]] - sphere.vertices[edges[:, 1]], axis=1)
+    >>> edge_length_error(sphere, edges, 1.1 * lengths)     # (rms, max) relative strain
+    (0.0909..., 0.0909...)
     """
     mesh = _mesh(mesh)
     edges = np.asarray(edges)
@@ -68,6 +79,13 @@ def folded_faces(mesh: TriangleMesh) -> int:
 
     A smooth, finely sampled surface has none; each fold of a crumpled re-embedding adds at least two.  This is
     the embedding analogue of a flipped triangle: a closed surface has no global "outward" to flip against.
+
+    Examples
+    --------
+    >>> from shspec.embed import folded_faces
+    >>> from shspec.mesh import icosphere
+    >>> folded_faces(icosphere(2))
+    0
     """
     mesh = _mesh(mesh)
     nrm = mesh.face_normals_unnormalized()
@@ -88,6 +106,13 @@ def self_intersections(mesh: TriangleMesh) -> int:
     -------
     int
         Intersecting face pairs; 0 for an embedded surface.
+
+    Examples
+    --------
+    >>> from shspec.embed import self_intersections
+    >>> from shspec.mesh import icosphere
+    >>> self_intersections(icosphere(2))
+    0
     """
     mesh = _mesh(mesh)
     p = mesh.vertices[mesh.faces]

@@ -40,6 +40,14 @@ def render_mesh(mesh: TriangleMesh, *, ax=None, view: tuple[float, float] = (20.
     Returns
     -------
     matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> from shspec.embed import render_mesh
+    >>> from shspec.mesh import blob
+    >>> fig = render_mesh(blob(2), title="blob")
+    >>> type(fig).__name__
+    'Figure'
     """
     import matplotlib.pyplot as plt
     from matplotlib import colormaps

@@ -36,6 +36,14 @@ class EmbedSystem:
     SciPy's own orderings (MMD, COLAMD) fill these matrices almost densely: 200 s for the 40962-vertex Laplacian.
     The damping terms use the metric of the lengths last given to :meth:`set_metric` (or :meth:`precondition`);
     until then, the unit sphere's.
+
+    Examples
+    --------
+    >>> from shspec.embed import EmbedSystem
+    >>> from shspec.mesh import icosphere
+    >>> system = EmbedSystem(icosphere(1), damping=1e-3, ridge=1e-8)
+    >>> system.n, system.edges.shape
+    (42, (120, 2))
     """
 
     def __init__(self, sphere: TriangleMesh, damping: float, ridge: float):
