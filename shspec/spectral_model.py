@@ -118,6 +118,18 @@ class SpectralModel(ABC):
     def describe(self) -> str:
         """A short, stable description ("harmonic Lb=30 La=15"), printed."""
 
+    def scaled(self, params: np.ndarray, factor: float) -> np.ndarray:
+        """The parameters (nparams,) of the metric ``factor``·ρ (the surface scaled by √factor in length, its
+        eigenvalues divided by ``factor``), for a fit run on a rescaled spectrum (:func:`shspec.inverse.fit`).
+
+        Raises
+        ------
+        InvalidArgumentError
+            For a model that cannot scale its metric (the default).
+        """
+        raise InvalidArgumentError(f"the model {self.describe()} cannot scale its metric, so it cannot fit a "
+                                   "spectrum that far from eigenvalues of order 1: rescale the spectrum")
+
     def identity(self) -> str:
         """Everything of the model that changes a fit's arithmetic, as a stable string (part of a checkpoint's
         fingerprint, :func:`shspec.inverse.checkpoint.fingerprint`): :meth:`describe` unless a model's description

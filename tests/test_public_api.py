@@ -162,3 +162,32 @@ def test_the_other_readers_give_a_result_or_a_shspec_error(tmp_path_factory, con
              "checkpoint": lambda: load_checkpoint(path, "fp", np.arange(3.0)), "result": lambda: load_result_summary(path),
              "table": lambda: load_table(2, 2, folder)}
     _obeys_the_rule(calls[reader])
+
+
+# issue 50 item 5: the scale of a spectrum -----------------------------------------------------------------------
+
+def _scale_case():
+    from shspec.fitting.targets import harmonic_target
+
+    target = harmonic_target(blob_factor(), lmax=8, numeig=20)
+    options = shspec.FitOptions(starts=1, max_iter=6, basin_hops=0, schedule=(), stage_basis_tol=None,
+                                search_basis_tol=None, progress=False)
+    return target.eigenvalues, HarmonicModel(8, 2), options
+
+
+@settings(max_examples=25, deadline=None)
+@given(exponent=st.integers(-300, 300), mantissa=st.floats(1.0, 9.99), weights=st.sampled_from(["relative",
+                                                                                                   "absolute"]))
+def test_a_spectrum_at_any_scale_fits_as_at_scale_one(exponent, mantissa, weights):
+    # the problem is scale-free (lambda scales as 1/area): lambda * 1e-300 raised SciPy's "A has a NaN entry", and
+    # lambda * 1e300 ended at a residual of 4.4e-2 where lambda ends at 1.5e-2
+    lam, model, options = _scale_case()
+    options = shspec.FitOptions(**{**options.__dict__, "weights": weights})
+    scale = mantissa * 10.0 ** exponent
+    if not np.isfinite(lam[-1] * scale) or lam[1] * scale == 0.0:
+        return
+    one = shspec.fit(Target("t", lam), model, options).best
+    got = shspec.fit(Target("t", lam * scale), model, options).best
+    assert got.relative_residual == pytest.approx(one.relative_residual, rel=1e-3)
+    np.testing.assert_allclose(got.params * scale, one.params, rtol=1e-3, atol=1e-6 * abs(one.params[0]))
+    np.testing.assert_allclose(got.eigenvalues / scale, one.eigenvalues, rtol=1e-6)

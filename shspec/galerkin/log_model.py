@@ -196,6 +196,12 @@ class LogHarmonicModel(SpectralModel):
     def describe(self) -> str:
         return f"log-harmonic Lb={self.lmax} La={self.lmax_factor} G={self.grid.lmax}"
 
+    def scaled(self, params: np.ndarray, factor: float) -> np.ndarray:
+        """u with log(factor) added to log ρ: to u_00, times √(4π) (Y_00 = 1/√(4π))."""
+        out = np.array(params, dtype=float)
+        out[0] += np.log(factor) * np.sqrt(4.0 * np.pi)
+        return out
+
     def free_parameters(self, fit_area: bool) -> np.ndarray:
         """Every u_lm but the gauge u_1m = 0; u_00 always (the area ∫ exp(u) is not linear in u: module notes)."""
         return np.flatnonzero(degrees(self.lmax_factor) != 1)

@@ -288,6 +288,10 @@ class HarmonicModel(SpectralModel):
     def describe(self) -> str:
         return f"harmonic Lb={self.lmax} La={self.lmax_factor}"
 
+    def scaled(self, params: np.ndarray, factor: float) -> np.ndarray:
+        """factor·a: ρ is linear in its coefficients."""
+        return np.asarray(params, dtype=float) * factor
+
     def free_parameters(self, fit_area: bool) -> np.ndarray:
         """Every a_lm but the gauge a_1m = 0 (Möbius centering), and a_00 (the area) only if ``fit_area``."""
         keep = degrees(self.lmax_factor) != 1

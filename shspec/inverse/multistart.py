@@ -11,6 +11,7 @@ the starts ended in.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from concurrent.futures import FIRST_COMPLETED, Executor, wait
@@ -33,7 +34,42 @@ from .prepared import PreparedFit
 from .target import Target
 from ..threads import reproducible_call
 
-__all__ = ["fit", "distinct_solutions"]
+__all__ = ["fit", "distinct_solutions", "spectral_scale", "SAFE_EIGENVALUES"]
+
+#: The eigenvalues a fit runs on as they are.  Its arithmetic squares eigenvalues and ρ's coefficients (weights
+#: 1/λ², the Jacobian's λ·v²): λ·1e-100 of the blob raised "A has a NaN entry" inside SciPy, λ·1e300 ended at a
+#: residual of 4.4e-2 where λ ended at 1.5e-2.
+SAFE_EIGENVALUES = (2.0 ** -64, 2.0 ** 64)
+
+
+def spectral_scale(eigenvalues) -> float:
+    """The factor :func:`fit` divides a spectrum (k,) by before it fits it: 1 when its nonzero eigenvalues are within
+    :data:`SAFE_EIGENVALUES`, else the power of 2 nearest λ₁ (exact in floating point, so that λ₁ becomes about 1).
+
+    The problem is scale-free: the surface scaled by √s in length has the eigenvalues λ/s and the metric s·ρ.
+    """
+    lam = np.asarray(eigenvalues, dtype=float)
+    positive = lam[lam > 0]
+    if positive.size == 0 or (SAFE_EIGENVALUES[0] <= positive.min() and positive.max() <= SAFE_EIGENVALUES[1]):
+        return 1.0
+    return float(2.0 ** round(math.log2(positive.min())))
+
+
+def _fit_scaled(target: Target, model: SpectralModel, options, *, init, **kwargs) -> FitResult:
+    """:func:`fit` of ``target`` through the same surface scaled to eigenvalues of order 1 (:func:`spectral_scale`),
+    its result mapped back: parameters by :meth:`~shspec.spectral_model.SpectralModel.scaled`, eigenvalues, and
+    the energy when the weights are absolute (relative ones and those of the errors are scale-free)."""
+    options = check_options(options, FitOptions)
+    s = spectral_scale(target.eigenvalues)
+    inner = dataclasses.replace(target, eigenvalues=target.eigenvalues / s,
+                                errors=None if target.errors is None else target.errors / s,
+                                area=None if target.area is None else target.area * s)
+    result = fit(inner, model, options, init=None if init is None else model.scaled(init, s), **kwargs)
+    energy = s * s if options.weights == "absolute" else 1.0
+    starts = [dataclasses.replace(r, params=model.scaled(r.params, 1.0 / s), eigenvalues=r.eigenvalues * s,
+                                  energy=r.energy * energy, history=r.history * np.array([1.0, energy, 1.0]))
+              for r in result.starts]
+    return dataclasses.replace(result, starts=starts, target=target)
 
 
 def distinct_solutions(starts: list, model: SpectralModel, tol: float) -> list:
@@ -205,7 +241,8 @@ def fit(target: Target | PreparedFit, model: SpectralModel | None = None, option
     Parameters
     ----------
     target : Target or PreparedFit
-        The target spectrum (k eigenvalues; stages may use fewer); or a fit made ready, such as the plan of
+        The target spectrum (k eigenvalues; stages may use fewer; one far from eigenvalues of order 1 is fitted as the
+        same surface scaled to them, and the result scaled back: :func:`spectral_scale`); or a fit made ready, such as the plan of
         :func:`shspec.fitting.prepare_fit`, which brings its target, model, options and start (then give only
         ``resume`` and ``executor``).
     model : SpectralModel
@@ -268,6 +305,8 @@ def fit(target: Target | PreparedFit, model: SpectralModel | None = None, option
     if model is None:
         raise InvalidArgumentError("fit(target, model, options) needs the model to fit; or plan the whole fit with "
                                    "shspec.fitting.prepare_fit and run fit(plan)")
+    if isinstance(target, Target) and spectral_scale(target.eigenvalues) != 1.0:
+        return _fit_scaled(target, model, options, resume=resume, init=init, executor=executor)
     options = check_options(options, FitOptions)
     if isinstance(executor, SerialExecutor):
         executor = None  # the same starts, with the checkpoints inside them that only a run here writes
