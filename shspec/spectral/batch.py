@@ -57,6 +57,14 @@ class MeshJobResult:
     topology : TopologyEstimate or None
     seconds : float
         Wall time of the job.
+
+    Examples
+    --------
+    >>> from shspec.mesh import icosphere, save_mesh
+    >>> from shspec.spectral import mesh_job
+    >>> result = mesh_job(save_mesh(icosphere(1), "a.obj"), 5)
+    >>> type(result).__name__, result.name, result.topology is None
+    ('MeshJobResult', 'a', True)
     """
 
     name: str
@@ -85,6 +93,14 @@ def mesh_job(path, numeig: int, mass: str = "lumped", *, descriptors: bool = Fal
         Keep the eigenvectors (for the heat kernel signature).
     topology : bool
         Estimate χ and the genus from the heat trace, with the mesh's area known.
+
+    Examples
+    --------
+    >>> from shspec.mesh import icosphere, save_mesh
+    >>> from shspec.spectral import mesh_job
+    >>> result = mesh_job(save_mesh(icosphere(1), "a.obj"), 5)
+    >>> result.nvertices, result.eigenvalues.size       # whole multiplets: 9, not 5
+    (42, 9)
     """
     start = time.perf_counter()
     path = Path(path)
@@ -107,6 +123,16 @@ def collect_meshes(items) -> list[Path]:
     InvalidArgumentError
         If an item does not exist, a folder holds no mesh, a file is not a mesh format, or two meshes share a
         stem (their output files would collide).
+
+    Examples
+    --------
+    >>> import os
+    >>> from shspec.mesh import icosphere, save_mesh
+    >>> from shspec.spectral import collect_meshes
+    >>> os.makedirs("meshes", exist_ok=True)
+    >>> _ = save_mesh(icosphere(1), "meshes/a.obj"), save_mesh(icosphere(2), "meshes/b.obj")
+    >>> [path.name for path in collect_meshes(["meshes"])]     # folders are searched for mesh files
+    ['a.obj', 'b.obj']
     """
     paths = []
     for item in items:
@@ -182,6 +208,17 @@ def run_batch(paths, out, numeig: int, *, mass: str = "lumped", descriptors: boo
     -------
     list of MeshJobResult
         In the order of the meshes (not of completion).
+
+    Examples
+    --------
+    >>> import os
+    >>> from shspec.mesh import icosphere, save_mesh
+    >>> from shspec.spectral import run_batch
+    >>> os.makedirs("batch_in", exist_ok=True)
+    >>> _ = save_mesh(icosphere(1), "batch_in/a.obj"), save_mesh(icosphere(2), "batch_in/b.obj")
+    >>> results = run_batch(["batch_in"], "batch_out", 5, progress=False)
+    >>> len(results), sorted(os.listdir("batch_out"))
+    (2, ['a.eigenvalues.txt', 'b.eigenvalues.txt', 'spectra.csv'])
     """
     meshes = collect_meshes(paths)
     numeig = check_int(numeig, "numeig", minimum=1)

@@ -29,7 +29,15 @@ DESCRIPTOR_SUFFIXES = {"eigenvalues": ".eigenvalues.txt", "shapedna": ".shapedna
 
 
 def write_values(path, values, header: str) -> Path:
-    """Write (k,) values one per line at full precision under '#' ``header`` lines; returns the path."""
+    """Write (k,) values one per line at full precision under '#' ``header`` lines; returns the path.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import write_values
+    >>> write_values("values.txt", np.array([1.0, 2.0]), "two values").name
+    'values.txt'
+    """
     path = Path(path)
     with atomic_output(path) as tmp:
         np.savetxt(tmp, np.asarray(values, dtype=float).reshape(-1), fmt="%.17g", header=header)
@@ -61,6 +69,17 @@ def write_descriptors(directory, stem: str, eigenvalues, area: float, *, eigenve
     -------
     dict
         Descriptor name -> Path written.
+
+    Examples
+    --------
+    >>> import os
+    >>> from shspec.mesh import icosphere, mesh_spectrum
+    >>> from shspec.spectral import write_descriptors
+    >>> mesh = icosphere(1)
+    >>> spec = mesh_spectrum(mesh, 4)
+    >>> os.makedirs("descriptors", exist_ok=True)
+    >>> sorted(write_descriptors("descriptors", "ico", spec.eigenvalues, mesh.area(), eigenvectors=spec.eigenvectors))
+    ['eigenvalues', 'heat_trace', 'hks', 'shapedna']
     """
     directory = Path(directory)
     if not directory.is_dir():

@@ -37,6 +37,13 @@ def shape_dna(eigenvalues, area: float, *, reweight: bool = False) -> np.ndarray
     -------
     (k,) ndarray
         Dimensionless.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import shape_dna
+    >>> shape_dna(np.array([0.0, 2.0, 2.0, 2.0, 6.0]), area=4 * np.pi).round(2)   # lambda * area: scale-free
+    array([ 0.  , 25.13, 25.13, 25.13, 75.4 ])
     """
     lam = as_eigenvalues(eigenvalues, minimum=1)
     area = float(area)
@@ -53,6 +60,14 @@ def hks_times(eigenvalues, count: int = 16) -> np.ndarray:
     ------
     InvalidArgumentError
         If λ₁ is 0 (a second component) or fewer than two eigenvalues are given.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import hks_times
+    >>> l = np.repeat(np.arange(20), 2 * np.arange(20) + 1)
+    >>> hks_times(l * (l + 1.0), 4).round(4)      # log-spaced between the spectrum's scales
+    array([0.0242, 0.1393, 0.8011, 4.6052])
     """
     lam = as_eigenvalues(eigenvalues, minimum=2)
     count = check_int(count, "count", minimum=1, maximum=100_000)
@@ -76,6 +91,15 @@ def heat_kernel_signature(eigenvalues, eigenvectors, t) -> np.ndarray:
     -------
     (n, p) ndarray
         Units 1/area (φ² is a density).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.mesh import icosphere, mesh_spectrum
+    >>> from shspec.spectral import heat_kernel_signature
+    >>> spec = mesh_spectrum(icosphere(1), 4)
+    >>> heat_kernel_signature(spec.eigenvalues, spec.eigenvectors, np.array([0.1, 1.0])).shape   # (vertices, times)
+    (42, 2)
     """
     lam = as_eigenvalues(eigenvalues, minimum=1)
     phi = np.asarray(eigenvectors, dtype=float)

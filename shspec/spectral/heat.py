@@ -29,6 +29,12 @@ def as_eigenvalues(values, *, minimum: int = 2, zero_rtol: float = 1e-8) -> np.n
     ------
     InvalidArgumentError
         If the values are not a finite 1-d array of at least ``minimum`` entries starting at 0 and ascending.
+
+    Examples
+    --------
+    >>> from shspec.spectral import as_eigenvalues
+    >>> as_eigenvalues([0, 2, 2, 2, 6.0])         # checked: lambda_0 = 0, ascending, finite
+    array([0., 2., 2., 2., 6.])
     """
     try:
         lam = np.array(values, dtype=float)
@@ -74,6 +80,14 @@ def heat_trace(eigenvalues, t) -> np.ndarray:
     -------
     (p,) ndarray
         Z at each t (dimensionless).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import heat_trace
+    >>> l = np.repeat(np.arange(20), 2 * np.arange(20) + 1)
+    >>> heat_trace(l * (l + 1.0), np.array([0.1, 1.0])).round(4)   # sum_i exp(-lambda_i t), the unit sphere
+    array([10.3401,  1.4184])
     """
     lam = as_eigenvalues(eigenvalues, minimum=1)
     t = as_times(t)
@@ -105,6 +119,14 @@ def spectral_tail(t, lam_max: float, density: float, density_slope: float = 0.0)
     Returns
     -------
     (p,) ndarray
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import spectral_tail
+    >>> tail = spectral_tail(np.array([0.01, 1.0]), lam_max=400.0, density=1.0)   # eigenvalues above 400
+    >>> bool(tail[0] > 1.0), bool(tail[1] < 1e-100)      # matter at small t only
+    (True, True)
     """
     t = as_times(t)
     lam_max, density, density_slope = float(lam_max), float(density), float(density_slope)

@@ -32,6 +32,14 @@ class WeylFit:
         A (area units).
     offset : float
         c (dimensionless).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import weyl_fit
+    >>> l = np.repeat(np.arange(20), 2 * np.arange(20) + 1)
+    >>> type(weyl_fit(l * (l + 1.0))).__name__
+    'WeylFit'
     """
 
     area: float
@@ -45,6 +53,15 @@ def weyl_fit(eigenvalues) -> WeylFit:
     ------
     InvalidArgumentError
         If the spectrum is too short or does not grow (slope ≤ 0).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import weyl_fit
+    >>> l = np.repeat(np.arange(20), 2 * np.arange(20) + 1)
+    >>> fit = weyl_fit(l * (l + 1.0))             # N(lambda) ~ A lambda / (4 pi) + c
+    >>> round(fit.area / (4 * np.pi), 3), round(fit.offset, 3)
+    (1.0, 0.5)
     """
     lam = as_eigenvalues(eigenvalues, minimum=4)
     n = np.arange(lam.size) + 0.5
@@ -56,7 +73,16 @@ def weyl_fit(eigenvalues) -> WeylFit:
 
 
 def weyl_area(eigenvalues) -> float:
-    """Area A from Weyl's law fitted to the counting function of a spectrum (see :func:`weyl_fit`)."""
+    """Area A from Weyl's law fitted to the counting function of a spectrum (see :func:`weyl_fit`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import weyl_area
+    >>> l = np.repeat(np.arange(20), 2 * np.arange(20) + 1)
+    >>> round(weyl_area(l * (l + 1.0)) / (4 * np.pi), 3)
+    1.0
+    """
     return weyl_fit(eigenvalues).area
 
 
@@ -72,6 +98,14 @@ class TopDensity:
         dN/dλ and d²N/dλ² at λ_K (area units and their square).
     fluctuation : float
         D, the largest distance of the staircase from the parabola over the top quarter (a count, ≥ ½).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import top_density
+    >>> l = np.repeat(np.arange(20), 2 * np.arange(20) + 1)
+    >>> sorted(top_density(l * (l + 1.0)).__dataclass_fields__)
+    ['density', 'density_slope', 'fluctuation', 'lam_max']
     """
 
     lam_max: float
@@ -91,6 +125,15 @@ def top_density(eigenvalues, fraction: float = 0.25) -> TopDensity:
     ------
     InvalidArgumentError
         If fewer than 8 eigenvalues are given, ``fraction`` is not in (0, 1], or the spectrum does not grow.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import top_density
+    >>> l = np.repeat(np.arange(20), 2 * np.arange(20) + 1)
+    >>> top = top_density(l * (l + 1.0))          # eigenvalues per unit of lambda near the top: A / (4 pi) = 1
+    >>> top.lam_max, round(top.density, 2)
+    (380.0, 1.02)
     """
     lam = as_eigenvalues(eigenvalues, minimum=8)
     if not 0 < fraction <= 1:
