@@ -58,4 +58,5 @@ def parse_rho(text: str, lmax_factor: int) -> ConformalFactor:
         raise
     except (OSError, ValueError, EOFError) as exc:  # np.load of an empty file: EOFError
         raise InvalidArgumentError(f"cannot read coefficients from {path}: {exc or type(exc).__name__}") from exc
-    return ConformalFactor(data, name=path.stem)
+    # a file's coefficients are shspec's own, orthonormal (shspec.fitting.initial.FILE_NORMALIZATION)
+    return ConformalFactor(data, name=path.stem, normalization="ortho")

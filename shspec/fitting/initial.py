@@ -4,7 +4,8 @@ A fit's files hold different things: ``summary.json``'s ``cilm`` is ρ itself, w
 ``solution`` is its model's parameters (ρ's coefficients, log ρ's, or per-vertex factors, as its ``model``
 attribute says); a ``.npy`` array or a text column holds the parameters of the model it is given to.  A start for
 another model is converted (ρ → log ρ and back on a quadrature grid, harmonics → values at a mesh's vertices), and
-what cannot be converted is refused: nothing is silently read as something else.
+what cannot be converted is refused: nothing is silently read as something else.  Coefficients in a file, flat or
+cilm, are shspec's own, orthonormal (:data:`FILE_NORMALIZATION`), as every file shspec writes holds them.
 """
 
 from __future__ import annotations
@@ -26,7 +27,12 @@ from ..sphere.factor import ConformalFactor
 from ..sphere.grid import evaluate_on_grid, expand_grid, glq_grid
 from ..sphere.harmonics import as_coefficients, lmax_of_size
 
-__all__ = ["read_parameters", "initial_parameters", "read_initial", "read_truth"]
+__all__ = ["read_parameters", "initial_parameters", "read_initial", "read_truth", "FILE_NORMALIZATION"]
+
+#: The normalization of harmonic coefficients in a file: shspec's ('ortho', csphase 1), that of summary.json's cilm.
+#: A file cannot say another; coefficients in pyshtools' '4pi' are converted before saving
+#: (``SHCoeffs.convert(normalization="ortho")``).
+FILE_NORMALIZATION = "ortho"
 
 #: What a file of parameters holds: ρ's harmonic coefficients, log ρ's, per-vertex factors c, their logarithms, or
 #: the parameters of whatever model reads it ("own").
@@ -89,7 +95,7 @@ def read_parameters(path, what: str = "parameters") -> tuple[np.ndarray, str]:
 def _harmonic(value, kind: str, la: int, name: str) -> np.ndarray:
     """Harmonic coefficients of degree ≤ la of ρ (kind "rho") or log ρ ("log-rho") as given; above la they must
     vanish."""
-    a = as_coefficients(value)
+    a = as_coefficients(value, normalization=FILE_NORMALIZATION)
     n = (la + 1) ** 2
     if a.size > n and np.any(a[n:] != 0):
         raise InvalidArgumentError(f"the starting {'rho' if kind == 'rho' else 'log rho'} in {name} has degree "
@@ -159,12 +165,12 @@ def initial_parameters(value, kind: str, model, name: str = "the starting point"
         la = model.lmax_factor
         if kind == ("log-rho" if log else "rho"):
             return _harmonic(value, kind, la, name)
-        a = as_coefficients(value)
+        a = as_coefficients(value, normalization=FILE_NORMALIZATION)
         return _log_of(a, la, name) if log else _exp_of(a, la)
     if isinstance(model, MeshModel):
         log = model.transform == "exp"
         if kind in ("rho", "log-rho"):
-            a = as_coefficients(value)
+            a = as_coefficients(value, normalization=FILE_NORMALIZATION)
             v = sample_harmonic(a, model.mesh.vertices)
             if kind == "rho" and not np.all(v > 0):
                 raise NotPositiveError(f"the starting rho in {name} is not positive at every vertex of the fit's mesh")
@@ -226,9 +232,10 @@ def read_truth(path) -> ConformalFactor:
     """
     value, kind = read_parameters(path, "the true rho")
     if kind == "log-rho":
-        value = _exp_of(as_coefficients(value), lmax_of_size(as_coefficients(value).size))
+        u = as_coefficients(value, normalization=FILE_NORMALIZATION)
+        value = _exp_of(u, lmax_of_size(u.size))
     elif kind not in ("rho", "own"):
         raise InvalidArgumentError(f"{path} holds per-vertex factors, not a harmonic rho")
-    rho = ConformalFactor(as_coefficients(value), name=f"truth ({Path(path).name})")
+    rho = ConformalFactor(as_coefficients(value, normalization=FILE_NORMALIZATION), name=f"truth ({Path(path).name})")
     rho.check_positive()
     return rho

@@ -124,11 +124,14 @@ class ConformalFactor:
     Parameters
     ----------
     coefficients : (N,) float array, a pyshtools cilm array (2, L+1, L+1), or ``pyshtools.SHCoeffs``
-        Coefficients a_k of ρ; N = (La+1)**2.  SHCoeffs in another normalization are converted.
+        Coefficients a_k of ρ; N = (La+1)**2.  SHCoeffs in another normalization are converted; a cilm array needs
+        ``normalization`` (:func:`~shspec.sphere.harmonics.as_coefficients`).
     lmax : int, optional
         Truncate or zero-pad to this band limit La.
     name : str
         A label used in plots and result files.
+    normalization : {"ortho", "4pi", "schmidt", "unnorm"}, optional
+        Of a cilm array (required there: pyshtools' default is '4pi', shspec's 'ortho'); ``csphase`` likewise.
 
     Examples
     --------
@@ -141,8 +144,9 @@ class ConformalFactor:
     0.25
     """
 
-    def __init__(self, coefficients, lmax: int | None = None, *, name: str = "rho"):
-        coef = as_coefficients(coefficients, lmax)
+    def __init__(self, coefficients, lmax: int | None = None, *, name: str = "rho", normalization: str | None = None,
+                 csphase: int = 1):
+        coef = as_coefficients(coefficients, lmax, normalization=normalization, csphase=csphase)
         big = float(np.max(np.abs(coef), initial=0.0))
         if big > MAX_COEFFICIENT:
             raise InvalidArgumentError(

@@ -3,6 +3,11 @@
 shspec uses the real harmonics of pyshtools with ``normalization='ortho'`` and ``csphase=1``: for m > 0 the
 cos(mφ) function, for m < 0 the sin(|m|φ) function, each of unit L2 norm on the unit sphere.  A coefficient vector
 of band limit L has ``(L+1)**2`` entries in the flat order ``i = l*l + l + m``.
+
+Normalization.  A flat vector is shspec's own and orthonormal.  A ``pyshtools.SHCoeffs`` says its normalization and
+is converted.  A raw cilm array says nothing, and pyshtools' default is '4pi' (ρ read as orthonormal would then be
+√(4π) too small, its spectrum √(4π) too large, and nothing would tell): :func:`as_coefficients`, which every
+routine taking ρ uses, accepts one only with its ``normalization`` given, and :func:`cilm_to_vector` converts any.
 """
 
 from __future__ import annotations
@@ -25,7 +30,11 @@ __all__ = [
     "vector_to_shcoeffs",
     "shcoeffs_to_vector",
     "as_coefficients",
+    "NORMALIZATIONS",
 ]
+
+#: The normalizations of real harmonics pyshtools knows (shspec's own is 'ortho').
+NORMALIZATIONS = ("ortho", "4pi", "schmidt", "unnorm")
 
 #: Largest band limit any shspec routine accepts; beyond it tables and grids no longer fit a workstation.
 MAX_DEGREE = 2000
@@ -131,8 +140,11 @@ def vector_to_cilm(a) -> np.ndarray:
     return cilm
 
 
-def cilm_to_vector(cilm, lmax: int | None = None) -> np.ndarray:
+def cilm_to_vector(cilm, lmax: int | None = None, *, normalization: str = "ortho", csphase: int = 1) -> np.ndarray:
     """pyshtools array cilm (2, L+1, L+1) -> flat coefficient vector (N,), truncated or zero-padded to lmax.
+
+    ``normalization`` and ``csphase`` are the array's, as pyshtools names them (:data:`NORMALIZATIONS`; default
+    shspec's own, 'ortho' with csphase 1); another is converted by pyshtools.
 
     Examples
     --------
@@ -143,6 +155,9 @@ def cilm_to_vector(cilm, lmax: int | None = None) -> np.ndarray:
     True
     """
     cilm = real_array(cilm, "cilm")
+    if normalization not in NORMALIZATIONS or csphase not in (1, -1):
+        raise ConventionError(f"a cilm array's normalization is one of {NORMALIZATIONS} and its csphase 1 or -1, got "
+                              f"{normalization!r} and {csphase!r}")
     if cilm.ndim != 3 or cilm.shape[0] != 2 or cilm.shape[1] != cilm.shape[2]:
         raise InvalidArgumentError(f"a cilm array has shape (2, L+1, L+1), got {cilm.shape}")
     if not np.all(np.isfinite(cilm)):
@@ -152,6 +167,9 @@ def cilm_to_vector(cilm, lmax: int | None = None) -> np.ndarray:
         l0 = int(sine0[0])
         raise ConventionError(f"cilm[1, {l0}, 0] = {cilm[1, l0, 0]:g} is a sine coefficient at order m = 0, which "
                               "does not exist; the array is probably in another layout")
+    if normalization != "ortho" or csphase != 1:
+        return shcoeffs_to_vector(pyshtools.SHCoeffs.from_array(cilm, normalization=normalization, csphase=csphase),
+                                  lmax)
     have = cilm.shape[1] - 1
     lmax = have if lmax is None else check_degree(lmax, "lmax")
     l, m = degree_order(lmax)
@@ -190,13 +208,37 @@ def shcoeffs_to_vector(coeffs: pyshtools.SHCoeffs, lmax: int | None = None) -> n
     return cilm_to_vector(coeffs.coeffs, lmax)
 
 
-def as_coefficients(value, lmax: int | None = None) -> np.ndarray:
-    """Flat coefficient vector from a flat vector, a cilm array or an SHCoeffs object."""
+def as_coefficients(value, lmax: int | None = None, *, normalization: str | None = None,
+                    csphase: int = 1) -> np.ndarray:
+    """Flat coefficient vector from a flat vector (shspec's, orthonormal), an SHCoeffs object (converted) or a cilm
+    array whose ``normalization`` (and ``csphase``) the caller gives (module notes).
+
+    Raises
+    ------
+    ConventionError
+        For a cilm array without its ``normalization``, or a flat vector said to be in another than shspec's.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.sphere.harmonics import as_coefficients
+    >>> cilm = np.zeros((2, 3, 3)); cilm[0, 0, 0] = 1.0     # rho = 1 in pyshtools' default, '4pi'
+    >>> round(float(as_coefficients(cilm, normalization="4pi")[0]), 4)   # sqrt(4 pi): the same rho, orthonormal
+    3.5449
+    """
     if isinstance(value, pyshtools.SHCoeffs):
         return shcoeffs_to_vector(value, lmax)
     arr = real_array(value, "coefficients")
     if arr.ndim == 3:
-        return cilm_to_vector(arr, lmax)
+        if normalization is None:
+            raise ConventionError(
+                "a cilm array does not say its normalization, and pyshtools' default ('4pi') is not shspec's "
+                "('ortho'): give it (normalization='ortho', '4pi', 'schmidt' or 'unnorm'), or pass a "
+                "pyshtools.SHCoeffs, which carries it, or flat coefficients")
+        return cilm_to_vector(arr, lmax, normalization=normalization, csphase=csphase)
+    if (normalization or "ortho") != "ortho" or csphase != 1:
+        raise ConventionError("flat coefficients are shspec's own, orthonormal with csphase 1; a vector in another "
+                              "normalization is given as a cilm array or an SHCoeffs")
     vec = _finite_vector(arr, "coefficient vector")
     if lmax is None:
         return vec

@@ -6,6 +6,7 @@ import pytest
 import scipy.special
 
 from shspec.errors import BandLimitError, ConventionError, InvalidArgumentError
+from shspec.sphere.factor import ConformalFactor
 from shspec.sphere.grid import evaluate_on_grid, expand_grid, glq_grid
 from shspec.sphere.harmonics import (as_coefficients, cilm_to_vector, degree_order, flat_index, lmax_of_size,
                               shcoeffs_to_vector, vector_to_cilm, vector_to_shcoeffs)
@@ -117,3 +118,40 @@ def test_no_transform_plans_its_ffts_by_timing(monkeypatch, rng):
     rho = np.zeros(16)
     rho[0], rho[1:] = np.sqrt(4 * np.pi), 0.1 * a[1:16]
     center_harmonic(rho)
+
+
+# issue 50 item 24: a raw cilm array does not carry its normalization ------------------------------------------
+
+def _blob_in(normalization: str, csphase: int = 1) -> np.ndarray:
+    from shspec.fitting import blob_factor
+
+    ortho = pyshtools.SHCoeffs.from_array(blob_factor().to_cilm(), normalization="ortho", csphase=1)
+    return ortho.convert(normalization=normalization, csphase=csphase).coeffs
+
+
+def test_a_raw_cilm_array_without_its_normalization_is_refused_by_name():
+    import shspec
+
+    cilm = _blob_in("4pi")  # what pyshtools.expand gives by default: read as orthonormal it was rho / sqrt(4 pi)
+    for call in (lambda: as_coefficients(cilm), lambda: ConformalFactor(cilm), lambda: shspec.spectrum(cilm, 8, 5)):
+        with pytest.raises(ConventionError, match="does not say its normalization.*'4pi'"):
+            call()
+    with pytest.raises(ConventionError, match="flat coefficients are shspec's own"):
+        as_coefficients(np.ones(4), normalization="4pi")
+
+
+@pytest.mark.parametrize("normalization", ["ortho", "4pi", "schmidt", "unnorm"])
+@pytest.mark.parametrize("csphase", [1, -1])
+def test_a_cilm_array_in_any_normalization_is_converted_when_it_says_which(normalization, csphase):
+    from shspec.fitting import blob_factor
+
+    cilm = _blob_in(normalization, csphase)
+    expected = blob_factor().coefficients
+    np.testing.assert_allclose(as_coefficients(cilm, normalization=normalization, csphase=csphase), expected,
+                               rtol=1e-12, atol=1e-14)
+    rho = ConformalFactor(cilm, normalization=normalization, csphase=csphase)
+    assert rho.area == pytest.approx(4 * np.pi, rel=1e-12)
+    np.testing.assert_allclose(cilm_to_vector(cilm, normalization=normalization, csphase=csphase), expected,
+                               rtol=1e-12, atol=1e-14)
+    shc = pyshtools.SHCoeffs.from_array(cilm, normalization=normalization, csphase=csphase)
+    np.testing.assert_allclose(as_coefficients(shc), expected, rtol=1e-12, atol=1e-14)  # an SHCoeffs says it
