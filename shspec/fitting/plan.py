@@ -40,7 +40,7 @@ from ..mesh.refine import eigenvalue_errors, trusted_numeig
 from ..mesh.triangle_mesh import TriangleMesh
 from ..parallel import make_executor, stop_executor, usable_cores
 from ..spectral.topology import check_genus_zero
-from ..spectrum_file import read_spectrum
+from ..spectrum_file import read_spectrum, read_spectrum_file
 from ..sphere.factor import ConformalFactor
 from ..sphere.random import random_centred_coefficients
 from .adaptive import adaptive_fit
@@ -268,6 +268,7 @@ def prepare_fit(target, **fields) -> FitPlan:
         request = target
     else:
         request = FitRequest(target, **fields)
+    _check_noise(request)
     kind = request.model or ("log" if request.is_mesh else "harmonic")
     p = _Planning(request, kind)
     p.choose("model", kind, "as asked" if request.model else
@@ -287,6 +288,20 @@ def prepare_fit(target, **fields) -> FitPlan:
                    notes=tuple(p.notes), expected_error=_expected_error(p, model, target),
                    surface_plan=p.surface_plan, numeig_plan=p.numeig_plan, numeig_auto=p.numeig_auto,
                    adaptive=request.adaptive, **_where(request))
+
+
+def _check_noise(r: FitRequest) -> None:
+    """Refuse a noise given beside errors of the target's own before any planning (a plan of K takes a minute)."""
+    if r.noise is None:
+        return
+    what = r.target
+    if isinstance(what, str) and what.startswith("spectrum:"):
+        own = read_spectrum_file(what.partition(":")[2]).errors is not None
+    else:
+        own = r.errors is not None or (isinstance(what, Target) and what.errors is not None)
+    if own:
+        raise InvalidArgumentError("the target gives each eigenvalue's error (a spectrum file's error column, or "
+                                   "errors given); noise (--noise) would replace them: give one")
 
 
 def _surface_planned(request: FitRequest, kind: str) -> bool:
@@ -392,13 +407,10 @@ def _refined(p: _Planning, target: MeshTarget, fine) -> MeshTarget:
 
 
 def _with_errors(p: _Planning) -> Target:
-    """The target with its errors: its own, the request's noise (not both), or a mesh's discretization errors for
+    """The target with its errors: its own, the request's noise, or a mesh's discretization errors for
     a harmonic model (which hears them; a mesh model shares the mesh's discretization)."""
     target, r = p.target, p.request
-    if target.errors is not None and r.noise is not None:
-        raise InvalidArgumentError(f"the target {target.name!r} gives each eigenvalue's error (a spectrum file's "
-                                   "error column, or errors given); noise (--noise) would replace them: give one")
-    if target.errors is not None:
+    if target.errors is not None:  # its own (noise beside them was refused before planning)
         return target
     if r.noise is not None:
         return target.with_noise(r.noise)

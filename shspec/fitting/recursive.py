@@ -170,7 +170,7 @@ def recursive_fit(target, sphere: TriangleMesh | None = None, options: Recursive
     Parameters
     ----------
     target : shspec.inverse.Target
-        The spectrum (k eigenvalues), e.g. from :func:`shspec.inverse.mesh_target`.
+        The spectrum (k eigenvalues), e.g. from :func:`shspec.fitting.mesh_target`.
     sphere : TriangleMesh, optional
         Unit-sphere mesh of the first pass; default the target's own cMCF sphere (``target.sphere``).
     options : RecursiveOptions, optional

@@ -26,7 +26,8 @@ AREA_MODES = ("auto", "fixed", "fit")
 @dataclass(frozen=True)
 class FitOptions:
     """Options of :func:`~shspec.inverse.fit`.  The defaults are the command line's; the user guide's inverse page
-    (:doc:`/guide/inverse`) gives what was measured for each search option.
+    (:doc:`/guide/inverse`) says what to expect of them, and the design notes (:doc:`/notes`) what was measured for
+    each search option.
 
     Attributes
     ----------

@@ -98,12 +98,12 @@ def parse_schedule(text: str) -> tuple[Stage, ...]:
 DEFAULT_STAGE_MAX_ITER = 40
 
 #: The degree whose stage of the default degree ramp hops (see :func:`degree_ramp`) in fits of degree
-#: :data:`HOP_FIT_DEGREE` or more: there the hops succeed on their own and a round of moves is cheap (the user
-#: guide's inverse page has the numbers).
+#: :data:`HOP_FIT_DEGREE` or more: there the hops succeed on their own and a round of moves is cheap (the design
+#: notes have the numbers).
 DEFAULT_HOP_DEGREE = 6
 
 #: The smallest fit degree whose default degree ramp hops at :data:`DEFAULT_HOP_DEGREE`.  At degree 8 the hops of
-#: the degree-6 stage cannot reach a zero residual and only cost time (measured: the user guide's inverse page).
+#: the degree-6 stage cannot reach a zero residual and only cost time (measured: :doc:`/notes`).
 HOP_FIT_DEGREE = 10
 
 
@@ -111,7 +111,7 @@ def numeig_ramp(numeig: int, lmax_factor: int | None = None, first: int = 16) ->
     """A schedule that matches more and more eigenvalues: k = 16, 36, 64, ... ((2j)² up to ``numeig``), then all.
 
     Raising the number of matched eigenvalues in steps that end at whole sphere clusters ((l+1)² eigenvalues)
-    escapes the local minima of a direct fit more often (measured: :doc:`/guide/inverse`): the low eigenvalues fix
+    escapes the local minima of a direct fit more often (measured: :doc:`/notes`): the low eigenvalues fix
     the coarse shape first.
 
     Parameters
@@ -193,7 +193,7 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
     models: the factor's degree), :func:`numeig_ramp` for models without levels (meshes).
 
     The stages of the degree ramp but the last are capped at :data:`DEFAULT_STAGE_MAX_ITER` iterations; how often
-    each schedule succeeds, measured, is in the user guide's inverse page (:doc:`/guide/inverse`).
+    each schedule succeeds, measured, is in the design notes (:doc:`/notes`).
 
     Examples
     --------

@@ -153,3 +153,17 @@ def test_a_folder_given_as_a_spectrum_or_a_mesh_is_named_as_a_folder(tmp_path, c
         assert main(["fit", "--target", f"{scheme}:{tmp_path}", "--out", str(tmp_path / "out")]) == 1
         assert "is a directory" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_noise_beside_errors_is_refused_before_any_planning(monkeypatch):
+    import shspec.fitting.plan as fit_plan
+
+    def no_planning(*args, **kwargs):  # planning K for La = 15 takes most of a minute
+        raise AssertionError("planned before the noise was checked")
+
+    monkeypatch.setattr(fit_plan, "plan_fit", no_planning)
+    lam = harmonic_target(blob_factor(), 10, 30).eigenvalues
+    target = Target("t", lam, errors=np.r_[0.0, 1e-6 * lam[1:]])
+    for given in ({"target": target}, {"target": lam, "errors": target.errors}):
+        with pytest.raises(InvalidArgumentError, match="give one"):
+            prepare_fit(**given, noise=1e-3, progress=False)
