@@ -180,8 +180,9 @@ def _report(result, out: Path) -> None:
     ident = result.identifiability()
     print(("warning: " if ident.underdetermined else "") + ident.statement(), file=sys.stderr)
     best, starts = result.best, result.options.starts
+    # the progress lines count every start that ran; the result keeps those up to the race's winner
     stopped = "" if len(result.starts) == starts or result.interrupted else (
-        f" (the fit stops at a success; --all-starts runs all {starts})")
+        f" (of {starts} asked, those kept up to the first success; --all-starts runs and keeps all)")
     print(f"best start {best.index}: energy {best.energy:.3e}, max relative residual {best.relative_residual:.3e}; "
           f"{result.success_count}/{len(result.starts)} starts succeeded ({success_definition(result)}){stopped}; "
           f"{result.seconds:.1f} s; wrote {out}")

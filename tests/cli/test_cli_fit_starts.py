@@ -63,7 +63,7 @@ def test_a_fit_stops_at_its_first_success_unless_all_starts(pools, tmp_path, cap
     assert main([*args, "--out", str(tmp_path / "first")]) == 0
     first = json.loads((tmp_path / "first" / "summary.json").read_text())
     assert [s["index"] for s in first["starts"]] == [0] and first["options"]["stop_at_success"] is True
-    assert "--all-starts runs all 3" in capsys.readouterr().out
+    assert "of 3 asked, those kept up to the first success; --all-starts runs and keeps all" in capsys.readouterr().out
     assert main([*args, "--all-starts", "--out", str(tmp_path / "all")]) == 0
     every = json.loads((tmp_path / "all" / "summary.json").read_text())
     assert [s["index"] for s in every["starts"]] == [0, 1, 2] and every["successes"] == 3
