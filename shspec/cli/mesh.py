@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_output, save_figure, write_text
+from ..atomic import atomic_output, atomic_outputs, save_figure, write_text
 from ..errors import InvalidArgumentError
 from ..outputs import ensure_directory
 from ..mesh.cmcf import CMCFOptions, cmcf
@@ -95,6 +95,10 @@ def _mesh_spectrum(args) -> int:
     return 0
 
 
+#: What ``shspec cmcf`` writes into its folder.
+CMCF_OUTPUTS = ("sphere.obj", "factors.txt", "summary.json", "factors.png")
+
+
 def _cmcf(args) -> int:
     import matplotlib
 
@@ -103,11 +107,6 @@ def _cmcf(args) -> int:
 
     mesh = load_mesh(args.path, merge_vertices=args.merge_vertices or None)
     result = cmcf(mesh, CMCFOptions(tol=args.tol, max_iter=args.max_iter, center=not args.no_center))
-    out = ensure_directory(args.out)
-    save_mesh(result.sphere, out / "sphere.obj")
-    with atomic_output(out / "factors.txt") as tmp:
-        np.savetxt(tmp, result.factors, fmt="%.17g",
-                   header="conformal factor per vertex: input vertex area / sphere vertex area")
     summary = {
         "input": str(args.path), "tol": args.tol, "max_iter": args.max_iter, "center": not args.no_center,
         "nvertices": mesh.nvertices, "roundness": result.roundness,
@@ -116,12 +115,18 @@ def _cmcf(args) -> int:
         "centering_residual": None if np.isnan(result.centering_residual) else result.centering_residual,
         "success": result.success, "stop_reason": result.stop_reason,
     }
-    write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
-    fig = plot_hammer(result.sphere, result.factors, log=True, title=f"{args.path.name}: conformal factors",
-                      label="factor (log scale)")
-    try:
-        save_figure(fig, out / "factors.png", dpi=120, bbox_inches="tight")
-    finally:
-        plt.close(fig)
+    # one unit: a failed write leaves the folder's previous run whole (shspec.atomic.atomic_outputs)
+    with atomic_outputs(ensure_directory(args.out), replaces=CMCF_OUTPUTS) as files:
+        save_mesh(result.sphere, files.path("sphere.obj"))
+        with atomic_output(files.path("factors.txt")) as tmp:
+            np.savetxt(tmp, result.factors, fmt="%.17g",
+                       header="conformal factor per vertex: input vertex area / sphere vertex area")
+        write_text(files.path("summary.json"), json.dumps(summary, indent=2) + "\n")
+        fig = plot_hammer(result.sphere, result.factors, log=True, title=f"{args.path.name}: conformal factors",
+                          label="factor (log scale)")
+        try:
+            save_figure(fig, files.path("factors.png"), dpi=120, bbox_inches="tight")
+        finally:
+            plt.close(fig)
     print(json.dumps(summary))
     return 0 if result.success else 1

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import save_figure, write_text
+from ..atomic import atomic_outputs, save_figure, write_text
 from ..checks import check_float, check_int, check_options
 from ..embed.ambiguity import AmbiguityReport, detect_ambiguity
 from ..embed.render import render_mesh
@@ -383,6 +383,11 @@ def _spectra_figure(result: ValidationResult):
     return fig
 
 
+#: What :func:`write_report` writes into its folder.
+REPORT_OUTPUTS = ("summary.json", "report.md", "meshes.png", "embedded.obj", "fit_embedded.obj", "ambiguity.png",
+                  "factors.png", "spectra.png")
+
+
 def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int = 90) -> Path:
     """Write ``summary.json`` (with the fitted ρ's cilm, ``fit.rho_cilm``), ``report.md``, the PNG figures and the
     re-embedded meshes (``embedded.obj`` of the cMCF factors, ``fit_embedded.obj`` of the fitted ones, in the
@@ -411,42 +416,42 @@ def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int =
     if not isinstance(result, ValidationResult):
         raise InvalidArgumentError(f"expected a ValidationResult, got {type(result).__name__}")
     out = ensure_directory(out_dir)
-    s = result.summary
-    write_text(out / "summary.json", json.dumps(s, indent=1))
+    # one unit: a failed write leaves the folder's previous report whole (shspec.atomic.atomic_outputs)
+    with atomic_outputs(out, replaces=REPORT_OUTPUTS) as files:
+        s = result.summary
+        write_text(files.path("summary.json"), json.dumps(s, indent=1))
 
-    aligned = result.target.with_vertices(result.embedding.mesh.vertices @ result.distance.transform[:3, :3].T
-                                          + result.distance.transform[:3, 3])
-    meshes = [(result.target, "target"), (aligned, "re-embedded cMCF factors")]
-    if result.fit_embedding is not None:
-        T = result.fit_distance.transform
-        meshes.append((result.target.with_vertices(result.fit_embedding.mesh.vertices @ T[:3, :3].T + T[:3, 3]),
-                       "re-embedded fitted factors"))
-    fig = plt.figure(figsize=(4.5 * len(meshes), 4.5))
-    for i, (m, title) in enumerate(meshes):
-        render_mesh(m, ax=fig.add_subplot(1, len(meshes), i + 1, projection="3d"), title=title, up=up)
-    save_figure(fig, out / "meshes.png", dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
-    save_mesh(result.embedding.mesh, out / "embedded.obj")
-    if result.fit_embedding is not None:
-        save_mesh(result.fit_embedding.mesh, out / "fit_embedded.obj")
+        aligned = result.target.with_vertices(result.embedding.mesh.vertices @ result.distance.transform[:3, :3].T
+                                              + result.distance.transform[:3, 3])
+        meshes = [(result.target, "target"), (aligned, "re-embedded cMCF factors")]
+        if result.fit_embedding is not None:
+            T = result.fit_distance.transform
+            meshes.append((result.target.with_vertices(result.fit_embedding.mesh.vertices @ T[:3, :3].T + T[:3, 3]),
+                           "re-embedded fitted factors"))
+        fig = plt.figure(figsize=(4.5 * len(meshes), 4.5))
+        for i, (m, title) in enumerate(meshes):
+            render_mesh(m, ax=fig.add_subplot(1, len(meshes), i + 1, projection="3d"), title=title, up=up)
+        save_figure(fig, files.path("meshes.png"), dpi=dpi, bbox_inches="tight")
+        plt.close(fig)
+        save_mesh(result.embedding.mesh, files.path("embedded.obj"))
+        if result.fit_embedding is not None:
+            save_mesh(result.fit_embedding.mesh, files.path("fit_embedded.obj"))
 
-    amb = result.ambiguity
-    if amb is not None and amb.caps:
-        fig = _ambiguity_figure(result, amb, up)
-        save_figure(fig, out / "ambiguity.png", dpi=dpi, bbox_inches="tight")
+        amb = result.ambiguity
+        if amb is not None and amb.caps:
+            fig = _ambiguity_figure(result, amb, up)
+            save_figure(fig, files.path("ambiguity.png"), dpi=dpi, bbox_inches="tight")
+            plt.close(fig)
+
+        # the factors themselves on a log scale: the bar reads in c, and says how far the clipped extremes go
+        fig = plot_hammer(result.flow.sphere, result.flow.factors, log=True, title="cMCF factors c",
+                          label="conformal factor c (log scale)")
+        save_figure(fig, files.path("factors.png"), dpi=dpi, bbox_inches="tight")
         plt.close(fig)
 
-    # the factors themselves on a log scale: the bar reads in c, and says how far the clipped extremes go
-    fig = plot_hammer(result.flow.sphere, result.flow.factors, log=True, title="cMCF factors c",
-                      label="conformal factor c (log scale)")
-    save_figure(fig, out / "factors.png", dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
+        fig = _spectra_figure(result)
+        save_figure(fig, files.path("spectra.png"), dpi=dpi, bbox_inches="tight")
+        plt.close(fig)
 
-    fig = _spectra_figure(result)
-    save_figure(fig, out / "spectra.png", dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
-
-    text = validation_markdown(s)
-    path = out / "report.md"
-    write_text(path, text)
-    return path
+        write_text(files.path("report.md"), validation_markdown(s))
+    return out / "report.md"

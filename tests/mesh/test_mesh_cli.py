@@ -53,3 +53,22 @@ def test_cmcf_writes_outputs(blob_file, tmp_path, capsys):
     factors = np.loadtxt(out / "factors.txt")
     assert factors.shape == (sphere.nvertices,) and np.all(factors > 0)
     assert (out / "factors.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_cmcf_that_cannot_write_a_figure_leaves_the_previous_run_whole(blob_file, tmp_path, capsys, monkeypatch):
+    # issue 50 item 6: sphere.obj, factors.txt and summary.json were the new run's beside the old factors.png
+    import errno
+
+    import matplotlib.figure
+
+    out = tmp_path / "flow"
+    assert main(["cmcf", str(blob_file), "--out", str(out)]) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+
+    def too_large(self, *args, **kwargs):
+        raise OSError(errno.EFBIG, "File too large")
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", too_large)
+    assert main(["cmcf", str(blob_file), "--out", str(out), "--tol", "1e-3"]) == 1
+    assert "factors.png" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
