@@ -23,17 +23,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import RESULTS, git_commit, load_average, machine_info, write_json  # noqa: E402
+from common import RESULTS, git_commit, machine_info, run_fit_command, write_json  # noqa: E402
 
 from shspec.sphere.random import random_centred_coefficients  # noqa: E402
 
@@ -59,36 +57,14 @@ def run_case(name: str, work: Path) -> dict:
     out = work / f"fit_{name}"
     command = ["fit", "--target", f"spectrum:{spectrum}", "--lmax-factor", str(la), "--truth", str(rho),
                "--out", str(out), "--quiet", *flags]
-    load, t0 = load_average(), time.perf_counter()
-    fit = subprocess.Popen([sys.executable, "-m", "shspec", *command], stdout=subprocess.PIPE,
-                           stderr=subprocess.PIPE, text=True)
-    try:
-        _, stderr = fit.communicate(timeout=goal)
-        stopped = False
-    except subprocess.TimeoutExpired:
-        # past the goal the goal is missed anyway: stop it as a batch system would (shspec fit takes SIGTERM as
-        # Ctrl-C; SIGINT would be ignored in a background job) and record the states it kept
-        fit.send_signal(signal.SIGTERM)
-        _, stderr = fit.communicate()
-        stopped = True
-    wall = time.perf_counter() - t0
     record = {"command": f"shspec fit --target spectrum:FILE --lmax-factor {la} --truth FILE --out DIR --quiet "
                          + " ".join(flags),
-              "spectrum": f"shspec forward on Lb = {lb}, {k} eigenvalues", "exit_code": fit.returncode,
-              "stopped_at_goal": stopped, "wall_s": wall, "goal_wall_s": goal,
-              "load_average_before_after": [load, load_average()]}
-    if not (out / "summary.json").exists():
-        return {**record, "stderr": stderr[-2000:]}
-    summary = json.loads((out / "summary.json").read_text())
-    alignment = summary.get("alignment") or {}
-    record.update(success=summary["successes"] > 0, starts_run=len(summary["starts"]),
-                  numeig=summary["numeig"], model=summary["model"],
-                  relative_residual=summary["relative_residual"],
-                  rho_error=alignment.get("relative_error"), power_error=alignment.get("power_error"),
-                  recovered_1e8=bool(alignment.get("relative_error", 1.0) <= 1e-8),
-                  goal_met=bool(alignment.get("relative_error", 1.0) <= 1e-8 and wall <= goal),
-                  per_start=[{k: s[k] for k in ("index", "relative_residual", "iterations", "time_s", "work",
-                                                    "success")} for s in summary["starts"]])
+              "spectrum": f"shspec forward on Lb = {lb}, {k} eigenvalues",
+              **run_fit_command(command, out, goal)}
+    if "rho_error" in record:
+        error, wall = record["rho_error"], record["wall_s"]
+        record.update(recovered_1e8=bool((error if error is not None else 1.0) <= 1e-8),
+                      goal_met=bool((error if error is not None else 1.0) <= 1e-8 and wall <= goal))
     return record
 
 

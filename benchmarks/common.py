@@ -12,8 +12,10 @@ import importlib.metadata
 import json
 import os
 import platform
+import signal
 import statistics
 import subprocess
+import sys
 import threading
 import time
 import tracemalloc
@@ -243,3 +245,40 @@ def main_with_only(doc: str, name: str, run) -> None:
     p = argparse.ArgumentParser(description=doc.splitlines()[0])
     p.add_argument("--only", help="run only the cases whose name contains this text")
     print(write_json(name, run(p.parse_args().only)))
+
+
+def run_fit_command(command: list, out: Path, goal: float) -> dict:
+    """Run ``shspec`` with ``command`` (a fit writing into ``out``) in a fresh process, stopped by SIGTERM at
+    ``goal`` seconds (shspec fit takes it as Ctrl-C and keeps its states), and what its summary says of the truth.
+
+    Returns the wall time, the load average before and after, whether it was stopped, and from ``summary.json``:
+    success, starts run, K, model, residual, the aligned errors of rho and of its per-degree power, the rho_error it
+    reported, and each start's residual, iterations, time and work.
+    """
+    load, t0 = load_average(), time.perf_counter()
+    fit = subprocess.Popen([sys.executable, "-m", "shspec", *command], stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        _, stderr = fit.communicate(timeout=goal)
+        stopped = False
+    except subprocess.TimeoutExpired:
+        # past the goal the goal is missed anyway: stop it as a batch system would (shspec fit takes SIGTERM as
+        # Ctrl-C; SIGINT would be ignored in a background job) and record the states it kept
+        fit.send_signal(signal.SIGTERM)
+        _, stderr = fit.communicate()
+        stopped = True
+    wall = time.perf_counter() - t0
+    record = {"exit_code": fit.returncode, "stopped_at_goal": stopped, "wall_s": wall, "goal_wall_s": goal,
+              "load_average_before_after": [load, load_average()]}
+    if not (out / "summary.json").exists():
+        return {**record, "stderr": stderr[-2000:]}
+    summary = json.loads((out / "summary.json").read_text())
+    alignment = summary.get("alignment") or {}
+    record.update(success=summary["successes"] > 0, starts_run=len(summary["starts"]),
+                  numeig=summary["numeig"], model=summary["model"],
+                  relative_residual=summary["relative_residual"],
+                  rho_error=alignment.get("relative_error"), power_error=alignment.get("power_error"),
+                  reported_rho_error=(summary.get("rho_error") or {}).get("value"),
+                  per_start=[{k: st[k] for k in ("index", "relative_residual", "iterations", "time_s", "work",
+                                                 "success")} for st in summary["starts"]])
+    return record
