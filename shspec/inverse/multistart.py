@@ -43,16 +43,16 @@ SAFE_EIGENVALUES = (2.0 ** -64, 2.0 ** 64)
 
 
 def spectral_scale(eigenvalues) -> float:
-    """The factor :func:`fit` divides a spectrum (k,) by before it fits it: 1 when its nonzero eigenvalues are within
+    """The factor :func:`fit` divides a spectrum (k,) by before it fits it: 1 when λ₁ … λ_k are within
     :data:`SAFE_EIGENVALUES`, else the power of 2 nearest λ₁ (exact in floating point, so that λ₁ becomes about 1).
+    λ₀ ≈ 0 does not count (a target's may be an ulp off 0).
 
     The problem is scale-free: the surface scaled by √s in length has the eigenvalues λ/s and the metric s·ρ.
     """
-    lam = np.asarray(eigenvalues, dtype=float)
-    positive = lam[lam > 0]
-    if positive.size == 0 or (SAFE_EIGENVALUES[0] <= positive.min() and positive.max() <= SAFE_EIGENVALUES[1]):
+    lam = np.asarray(eigenvalues, dtype=float)[1:]
+    if lam.size == 0 or not lam.min() > 0 or (SAFE_EIGENVALUES[0] <= lam.min() and lam.max() <= SAFE_EIGENVALUES[1]):
         return 1.0
-    return float(2.0 ** round(math.log2(positive.min())))
+    return float(2.0 ** round(math.log2(lam.min())))
 
 
 def _fit_scaled(target: Target, model: SpectralModel, options, *, init, **kwargs) -> FitResult:
