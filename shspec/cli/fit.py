@@ -35,6 +35,10 @@ def _numeig(text: str):
         raise argparse.ArgumentTypeError(f"--numeig is an integer, 'auto' or 'all', got {text!r}") from None
 
 
+def _degree(text: str):
+    return text if text == "auto" else whole_number(1, "the degree La of rho; at 0 rho is constant, a round sphere")(text)
+
+
 def _optional_tol(text: str):
     if text.lower() == "none":
         return None
@@ -67,8 +71,8 @@ def register(subparsers) -> None:
     p.add_argument("--model", choices=MODEL_KINDS, default=None, metavar="MODEL",
                    help="harmonic: rho's coefficients; log: log rho's; mesh: per-vertex factors (default: log for "
                    "mesh targets, else harmonic)")
-    p.add_argument("--lmax-factor", type=whole_number(1, "the degree La of rho; at 0 rho is constant, a round sphere"),
-                   default=None, metavar="La", help="degree La of rho (default: planned for mesh targets, else 15)")
+    p.add_argument("--lmax-factor", type=_degree, default=None, metavar="La",
+                   help="degree La of rho, or 'auto': the most K given supports (default: planned for meshes, else 15)")
     p.add_argument("--lmax", type=int, default=None, metavar="Lb", help="basis degree Lb (default: planned; 30 with --numeig)")
     p.add_argument("--numeig", type=_numeig, default=None, metavar="K",
                    help="eigenvalues matched, with lambda_0: a number, or 'auto'/'all' for meshes (default: planned)")

@@ -334,8 +334,13 @@ def _plan_surface(p: _Planning) -> None:
 def _plan_degrees(p: _Planning) -> None:
     """La, Lb and K of a fit that no surface plan makes (module notes)."""
     r = p.request
-    la = r.lmax_factor if r.lmax_factor is not None else DEFAULT_LMAX_FACTOR
-    if r.lmax_factor is not None:
+    la = r.lmax_factor if r.lmax_factor not in (None, "auto") else DEFAULT_LMAX_FACTOR
+    if r.lmax_factor == "auto":
+        have = _given_eigenvalues(r)
+        la = max(2, int(np.sqrt(have / SEARCH_NUMEIG_FACTOR)) - 1)
+        p.lmax_factor = p.choose("lmax_factor", la, f"the degree {have} eigenvalues support at "
+                                 f"{SEARCH_NUMEIG_FACTOR:g} per coefficient of rho")
+    elif r.lmax_factor is not None:
         p.lmax_factor = p.choose("lmax_factor", la, "as asked")
     elif isinstance(r.target, ConformalFactor):
         p.lmax_factor = p.choose("lmax_factor", r.target.lmax, "the degree of the rho given")
@@ -353,6 +358,21 @@ def _plan_degrees(p: _Planning) -> None:
     p.numeig = p.choose("numeig", plan.numeig, plan.statement())
     p.lmax = p.choose("lmax", plan.lmax if r.lmax is None else r.lmax,
                       "as asked" if r.lmax is not None else "the planned K converged at it")
+
+
+def _given_eigenvalues(r: FitRequest) -> int:
+    """How many eigenvalues a spectrum's target brings (lmax_factor="auto" needs a spectrum of a given size)."""
+    what = r.target
+    if isinstance(what, str) and what.startswith("spectrum:"):
+        have = read_spectrum_file(what.partition(":")[2]).eigenvalues.size
+    elif isinstance(what, Target):
+        have = what.numeig
+    elif isinstance(what, (np.ndarray, list, tuple)):
+        have = np.size(what)
+    else:
+        raise InvalidArgumentError("lmax_factor='auto' (--lmax-factor auto) picks the degree a given spectrum "
+                                   "supports: give a spectrum (spectrum:FILE, eigenvalues or a Target)")
+    return min(have, r.numeig) if isinstance(r.numeig, int) else have
 
 
 def _given_numeig(p: _Planning) -> None:
@@ -431,7 +451,8 @@ def _check_numeig(p: _Planning) -> None:
     if planned is not None and have < planned and p.numeig_plan is not None:
         supported = int(np.sqrt(have / SEARCH_NUMEIG_FACTOR)) - 1
         p.say(f"warning: the target has only {have} eigenvalues; the plan asked for {planned} (at "
-              f"{SEARCH_NUMEIG_FACTOR:g} per coefficient of rho, {have} support degree {supported})")
+              f"{SEARCH_NUMEIG_FACTOR:g} per coefficient of rho, {have} support degree {supported}: "
+              "lmax_factor='auto', --lmax-factor auto, fits that degree)")
 
 
 def _auto_numeig(p: _Planning) -> None:

@@ -41,7 +41,8 @@ class FitRequest:
     model : {"harmonic", "log", "mesh"} or None
         None: "log" for a mesh, else "harmonic".
     lmax_factor, lmax : int or None
-        Degree La of ρ and the basis degree Lb.
+        Degree La of ρ and the basis degree Lb; ``lmax_factor="auto"``: the largest La that a given spectrum's K
+        eigenvalues support at 2.5 per coefficient of ρ (the plan's own share).
     numeig : int, "auto", "all" or None
         Eigenvalues matched, λ₀ included; "auto" (a mesh): those its mesh resolves to ``numeig_tol``; "all": every
         eigenvalue of a mesh's.
@@ -96,7 +97,7 @@ class FitRequest:
 
     target: object
     model: str | None = None
-    lmax_factor: int | None = None
+    lmax_factor: int | str | None = None
     lmax: int | None = None
     numeig: int | str | None = None
     noise: float | None = None
@@ -123,7 +124,7 @@ class FitRequest:
         if self.model is not None and self.model not in MODEL_KINDS:
             raise InvalidArgumentError(f"model must be one of {MODEL_KINDS}, got {self.model!r}")
         for name in ("lmax_factor", "lmax"):
-            if getattr(self, name) is not None:
+            if getattr(self, name) is not None and not (name == "lmax_factor" and self.lmax_factor == "auto"):
                 check_int(getattr(self, name), name, minimum=1 if name == "lmax_factor" else 0)
         if isinstance(self.numeig, str) and self.numeig not in ("auto", "all"):
             raise InvalidArgumentError(f"numeig is a whole number, 'auto' or 'all', got {self.numeig!r}")

@@ -167,3 +167,19 @@ def test_a_noise_beside_errors_is_refused_before_any_planning(monkeypatch):
     for given in ({"target": target}, {"target": lam, "errors": target.errors}):
         with pytest.raises(InvalidArgumentError, match="give one"):
             prepare_fit(**given, noise=1e-3, progress=False)
+
+
+def test_lmax_factor_auto_takes_the_degree_the_given_spectrum_supports(tmp_path):
+    lam = harmonic_target(blob_factor(), 16, 60).eigenvalues
+    plan = prepare_fit(lam, lmax_factor="auto", progress=False)
+    # 60 eigenvalues at 2.5 per coefficient: (La + 1)^2 <= 24, La = 3; its plan asks for 40 of them
+    assert plan.choice("lmax_factor").value == 3 and "60 eigenvalues support" in plan.choice("lmax_factor").reason
+    assert plan.target.numeig == 40 and not any("only" in n for n in plan.notes)
+    path = tmp_path / "spectrum.txt"
+    np.savetxt(path, lam)
+    args = ["fit", "--target", f"spectrum:{path}", "--lmax-factor", "auto", "--starts", "1", "--max-iter", "2",
+            "--basin-hops", "0", "--schedule", "none", "--out", str(tmp_path / "out"), "--quiet"]
+    assert main(args) == 0
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["plan"]["lmax_factor"]["value"] == 3
+    with pytest.raises(InvalidArgumentError, match="picks the degree a given spectrum supports"):
+        prepare_fit("blob", lmax_factor="auto", progress=False)
