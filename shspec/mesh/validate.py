@@ -91,6 +91,19 @@ def validate_mesh(mesh: TriangleMesh, *, genus0: bool = True) -> TriangleMesh:
     """
     if not isinstance(mesh, TriangleMesh):
         raise MeshError(f"expected a TriangleMesh, got {type(mesh).__name__}")
+    _check_faces(mesh)
+    f, n = mesh.faces, mesh.nvertices
+    heads, tails, dkey, nedges = _check_edges(f, n)
+    _check_fans(f, n, heads, tails, dkey)
+    chi = n - nedges + f.shape[0]
+    if genus0 and chi != 2:
+        genus = (2 - chi) / 2
+        raise MeshError(f"the mesh has Euler characteristic {chi} (genus {genus:g}); shspec needs genus 0 (chi = 2)")
+    return mesh
+
+
+def _check_faces(mesh: TriangleMesh) -> None:
+    """Finite vertices, each in a face, at least four; faces of three distinct vertices, no two alike, none flat."""
     v, f = mesh.vertices, mesh.faces
     n = v.shape[0]
     if f.shape[0] == 0:
@@ -119,6 +132,10 @@ def validate_mesh(mesh: TriangleMesh, *, genus0: bool = True) -> TriangleMesh:
     if zero.size:
         raise MeshError(f"{zero.size} faces have zero area (first: face {zero[0]} = {f[zero[0]].tolist()})")
 
+
+def _check_edges(f: np.ndarray, n: int) -> tuple:
+    """Every edge in two faces, once each way, and one connected component; returns the half-edges' heads, tails,
+    directed keys and the number of edges."""
     # Half-edges a->b of every face; the undirected edge is (min, max).
     heads = f.ravel()
     tails = f[:, [1, 2, 0]].ravel()
@@ -150,10 +167,13 @@ def validate_mesh(mesh: TriangleMesh, *, genus0: bool = True) -> TriangleMesh:
     ncomp, _ = connected_components(graph, directed=False)
     if ncomp != 1:
         raise MeshError(f"the mesh has {ncomp} connected components; shspec needs one")
+    return heads, tails, dkey, nedges
 
-    # Vertex-manifold: the corners at a vertex must form one fan.  Corner (face t, vertex a) and the corner of the
-    # face across edge a->b at the same vertex a are joined; a vertex whose corners fall into two or more groups
-    # is a pinch point (e.g. two cones touching at their tips).
+
+def _check_fans(f: np.ndarray, n: int, heads, tails, dkey) -> None:
+    """Vertex-manifold: the corners at each vertex form one fan."""
+    # Corner (face t, vertex a) and the corner of the face across edge a->b at the same vertex a are joined; a vertex
+    # whose corners fall into two or more groups is a pinch point (e.g. two cones touching at their tips).
     corner = np.arange(3 * f.shape[0])
     order = np.argsort(dkey)
     twin_key = tails * n + heads
@@ -169,8 +189,3 @@ def validate_mesh(mesh: TriangleMesh, *, genus0: bool = True) -> TriangleMesh:
     if pinch.size:
         raise MeshError(f"{pinch.size} vertices are not manifold (first: vertex {pinch[0]} joins "
                         f"{fans[pinch[0]]} separate fans of faces)")
-    chi = n - nedges + f.shape[0]
-    if genus0 and chi != 2:
-        genus = (2 - chi) / 2
-        raise MeshError(f"the mesh has Euler characteristic {chi} (genus {genus:g}); shspec needs genus 0 (chi = 2)")
-    return mesh
