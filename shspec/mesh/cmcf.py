@@ -256,6 +256,32 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
     opt = check_options(options, CMCFOptions)
     if not isinstance(mesh, TriangleMesh):
         raise InvalidArgumentError(f"expected a TriangleMesh, got {type(mesh).__name__}")
+    _check_size(mesh)
+    if opt.validate:
+        validate_mesh(mesh)
+    start = time.perf_counter()
+    areas0 = vertex_areas(mesh)
+    round_final, x, history = _flow(mesh, areas0, opt)
+    stop_reason = "tolerance" if round_final <= opt.tol else "stalled" if _stalled(history, opt) else "max_iter"
+    converged = stop_reason != "max_iter"
+    sphere = mesh.with_vertices(x / np.linalg.norm(x, axis=1)[:, None])
+    residual = float("nan")
+    if opt.center:
+        centred = center_mesh(sphere, areas0)
+        sphere, residual = centred.sphere, float(np.linalg.norm(centred.center))
+    flips = flipped_faces(sphere, mesh.signed_volume())
+    qc = quasiconformal_distortion(mesh, sphere)
+    fa = mesh.face_areas()
+    factors = areas0 / vertex_areas(sphere)
+    return CMCFResult(sphere=sphere, factors=factors, roundness=round_final, history=np.array(history),
+                      iterations=len(history), flips=flips, distortion_mean=float(fa @ qc / fa.sum()),
+                      distortion_max=float(qc.max()), centering_residual=residual,
+                      success=bool(converged and flips == 0), seconds=time.perf_counter() - start,
+                      stop_reason=stop_reason)
+
+
+def _check_size(mesh: TriangleMesh) -> None:
+    """Refuse a mesh whose extent is outside :data:`SIZE_RANGE`."""
     if np.all(np.isfinite(mesh.vertices)):  # NaN and inf are validate_mesh's to name
         size = float(np.max(np.ptp(mesh.vertices, axis=0)))
         if not SIZE_RANGE[0] <= size <= SIZE_RANGE[1]:
@@ -263,10 +289,10 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
             raise MeshError(f"the mesh is {size:.3g} across, {which} for the flow (within [{SIZE_RANGE[0]:g}, "
                             f"{SIZE_RANGE[1]:g}]: its areas and conformal factors, ~ size^2, would leave double "
                             "precision); rescale it")
-    if opt.validate:
-        validate_mesh(mesh)
-    start = time.perf_counter()
-    areas0 = vertex_areas(mesh)
+
+
+def _flow(mesh: TriangleMesh, areas0, opt: CMCFOptions) -> tuple:
+    """The flow's steps until round or stalled; returns the best roundness, its positions (n, 3) and the history."""
     x, m = _normalize(mesh.vertices, areas0)
     # The cotan weights are scale invariant, so L₀ of the normalized mesh is L₀ of the input.
     L0 = cotan_stiffness(mesh).tocsc()
@@ -278,7 +304,7 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
                  f"then conjugate-gradient solves) until its roundness is at most {opt.tol:g}")
     steps = bar(mesh.nvertices, opt.max_iter, "cMCF", "steps", iterable=range(1, opt.max_iter + 1))
     # the bar closes when the loop ends, also by break (tqdm closes its iterator in a finally)
-    for it in steps:
+    for _ in steps:
         A = (sp.diags(m) + opt.step * L0).tocsc()
         b = m[:, None] * x
         if lu is None:
@@ -300,23 +326,7 @@ def cmcf(mesh: TriangleMesh, options: CMCFOptions | None = None) -> CMCFResult:
             best = (history[-1], x)
         if history[-1] <= opt.tol or _stalled(history, opt):
             break
-    round_final, x = best
-    stop_reason = "tolerance" if round_final <= opt.tol else "stalled" if _stalled(history, opt) else "max_iter"
-    converged = stop_reason != "max_iter"
-    sphere = mesh.with_vertices(x / np.linalg.norm(x, axis=1)[:, None])
-    residual = float("nan")
-    if opt.center:
-        centred = center_mesh(sphere, areas0)
-        sphere, residual = centred.sphere, float(np.linalg.norm(centred.center))
-    flips = flipped_faces(sphere, mesh.signed_volume())
-    qc = quasiconformal_distortion(mesh, sphere)
-    fa = mesh.face_areas()
-    factors = areas0 / vertex_areas(sphere)
-    return CMCFResult(sphere=sphere, factors=factors, roundness=round_final, history=np.array(history),
-                      iterations=len(history), flips=flips, distortion_mean=float(fa @ qc / fa.sum()),
-                      distortion_max=float(qc.max()), centering_residual=residual,
-                      success=bool(converged and flips == 0), seconds=time.perf_counter() - start,
-                      stop_reason=stop_reason)
+    return best[0], best[1], history
 
 
 def _normalize(x, areas):
