@@ -13,10 +13,10 @@ import time
 import warnings
 from contextlib import contextmanager
 
-import h5py
 import numpy as np
 from tqdm import tqdm
 
+from ..atomic import write_hdf5
 from ..inverse import align
 from ..mesh.bridge import fit_harmonic, mesh_band_limit
 from ..sphere.rotate import power_spectrum
@@ -105,8 +105,9 @@ def harmonic_errors(sphere, fitted, truth, lmax_factor: int, *, aligned: bool = 
 
 
 def write_h5(path, groups: dict) -> None:
-    """HDF5 file with one group per key, one dataset per array (scalars and strings as attributes)."""
-    with h5py.File(path, "w") as f:
+    """HDF5 file with one group per key, one dataset per array (scalars and strings as attributes), written
+    atomically (:func:`shspec.atomic.write_hdf5`: a full disk is one OutputError, never a crash inside HDF5)."""
+    def fill(f):
         for name, items in groups.items():
             g = f.create_group(str(name))
             for key, value in items.items():
@@ -114,6 +115,8 @@ def write_h5(path, groups: dict) -> None:
                     g.attrs[key] = value
                 else:
                     g.create_dataset(key, data=np.asarray(value))
+
+    write_hdf5(path, fill)
 
 
 def spearman(x, y) -> float:
