@@ -237,16 +237,18 @@ def _differences(stored: dict, fp: dict) -> list[str]:
 
 def _check_target(path, stored: Target, target: Target) -> None:
     """Refuse a checkpoint whose target (eigenvalues, errors, area) is not the resuming fit's, up to round-off."""
-    for what, a, b in (("spectrum", stored.eigenvalues, target.eigenvalues),
-                       ("errors", stored.errors, target.errors), ("area", stored.area, target.area)):
+    for what, a, b in (("another target spectrum", stored.eigenvalues, target.eigenvalues),
+                       ("other target errors", stored.errors, target.errors),
+                       ("another target area", stored.area, target.area)):
         if a is None or b is None:
             continue  # whether there are errors and an area is part of the fingerprint
         a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
         scale = max(float(np.max(np.abs(b))), float(np.finfo(float).tiny))
         worst = float(np.max(np.abs(a - b))) / scale
         if not worst <= TARGET_RTOL:  # also refuses NaN
-            raise CheckpointError(f"{path} is the checkpoint of a fit to another target {what} (largest difference "
-                                  f"{worst:.2g} of the largest value, more than the round-off {TARGET_RTOL:g})")
+            raise CheckpointError(f"{path} is the checkpoint of a fit to {what} (largest difference {worst:.2g} of "
+                                  f"the largest value, more than the round-off {TARGET_RTOL:g}); run it as it was "
+                                  "to resume it, or start anew")
 
 
 def describe_checkpoint(path) -> str:

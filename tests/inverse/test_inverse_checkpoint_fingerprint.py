@@ -71,7 +71,7 @@ def test_a_resume_with_another_option_is_refused_and_names_it(interrupted, name)
 
 def test_a_resume_with_other_target_errors_is_refused(interrupted):
     target, model, opts = interrupted
-    with pytest.raises(CheckpointError, match="another target errors"):  # --noise 1e-3, then --resume --noise 0.3
+    with pytest.raises(CheckpointError, match="other target errors"):  # --noise 1e-3, then --resume --noise 0.3
         fit(target.with_noise(0.3), model, opts, resume=True)
     with pytest.raises(CheckpointError, match="target errors 'given' → 'none"):
         fit(dataclasses.replace(target, errors=None), model, opts, resume=True)
@@ -106,7 +106,7 @@ def test_a_finished_checkpoint_with_other_errors_is_refused_not_returned(noisy, 
                       search_basis_tol=None, checkpoint_every=1, checkpoint_path=str(tmp_path / "ck.h5"))
     done = fit(target, model, opts)
     assert not done.interrupted
-    with pytest.raises(CheckpointError, match="another target errors"):
+    with pytest.raises(CheckpointError, match="other target errors"):
         fit(target.with_noise(0.3), model, opts, resume=True)
     # the same fit resumed is the finished one
     again = fit(target, model, opts, resume=True)
