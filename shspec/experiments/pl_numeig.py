@@ -22,6 +22,15 @@ from .fitting import (Progress, harmonic_errors, single_threaded, spearman, spec
 
 
 def run(cfg: dict, out, progress: bool) -> Finding:
+    state = _compute(cfg, progress)
+    write_h5(out / "results.h5", state["h5"])
+    files = _figures(cfg, state, out)
+    summary, numbers = _summary(cfg, state)
+    return Finding(summary, {"pl_numeig": state["rows"]}, files, numbers)
+
+
+def _compute(cfg: dict, progress: bool) -> dict:
+    """The target, one fit per K and its row; also the HDF5 groups and the cMCF factors' own residuals."""
     l, m, p = cfg["l"], cfg["m"], cfg["p"]
     ks = sorted(cfg["numeig_values"])
     ktot = ks[-1] + cfg["heldout"]
@@ -36,52 +45,70 @@ def run(cfg: dict, out, progress: bool) -> Finding:
                         "surface_vertices": mesh.vertices, "cmcf_factors": target.factors,
                         "target_eigenvalues": target.eigenvalues}
         for k in ks:
-            opts = FitOptions(optimizer="lm", starts=cfg["starts"], max_iter=cfg["max_iter"], reg=cfg["reg"], seed=cfg["seed"],
-                              schedule=(Stage(numeig=k),))
-            result = fit(target, model, opts)
-            best = result.best
-            err = vertex_factor_errors(model.vertex_areas, best.params, target.factors)
-            harm = harmonic_errors(target.sphere, best.params, target.factors, cfg["lmax_factor"])
-            lam = model.spectrum(best.params, ktot).eigenvalues
-            rel = np.abs(lam[1:] - target.eigenvalues[1:]) / target.eigenvalues[1:]
-            rows.append({"numeig": k, "vertices": mesh.nvertices, "fit_residual_max": best.relative_residual,
-                         "fit_residual_mean": spectral_residuals(best.eigenvalues, target.eigenvalues[:k])[1],
-                         "unseen_residual_max": float(rel[k - 1:].max()),
-                         "unseen_residual_mean": float(rel[k - 1:].mean()),
-                         "error_l2": err["relative_l2"], "error_log_rms": err["log_rms"],
-                         "error_power": harm["power_error"], "iterations": best.iterations, "status": best.status,
-                         "seconds": result.seconds})
-            h5[f"K={k}"] = {"fitted_factors": best.params, "fitted_eigenvalues": lam}
+            result, row, lam = _fit(cfg, target, model, k, ktot)
+            rows.append(row)
+            h5[f"K={k}"] = {"fitted_factors": result.best.params, "fitted_eigenvalues": lam}
             results.append(result)
-            bar.step(f"K = {k}: error {err['relative_l2']:.3f}, residual {best.relative_residual:.1e}, "
-                     f"unseen {rows[-1]['unseen_residual_mean']:.1e}")
-    write_h5(out / "results.h5", h5)
-    cmcf_max, cmcf_mean = spectral_residuals(cmcf_lam, target.eigenvalues)
-    deviation = vertex_factor_errors(model.vertex_areas, target.factors, target.factors)["baseline_l2"]
+            bar.step(f"K = {k}: error {row['error_l2']:.3f}, residual {result.best.relative_residual:.1e}, "
+                     f"unseen {row['unseen_residual_mean']:.1e}")
+    return {"rows": rows, "h5": h5, "results": results, "ks": ks, "ktot": ktot, "mesh": mesh, "target": target,
+            "cmcf_mean": spectral_residuals(cmcf_lam, target.eigenvalues)[1],
+            "deviation": vertex_factor_errors(model.vertex_areas, target.factors, target.factors)["baseline_l2"]}
 
+
+def _fit(cfg: dict, target, model, k: int, ktot: int) -> tuple:
+    """The fit of the first k eigenvalues, its row and its first ``ktot`` eigenvalues."""
+    opts = FitOptions(optimizer="lm", starts=cfg["starts"], max_iter=cfg["max_iter"], reg=cfg["reg"], seed=cfg["seed"],
+                      schedule=(Stage(numeig=k),))
+    result = fit(target, model, opts)
+    best = result.best
+    err = vertex_factor_errors(model.vertex_areas, best.params, target.factors)
+    harm = harmonic_errors(target.sphere, best.params, target.factors, cfg["lmax_factor"])
+    lam = model.spectrum(best.params, ktot).eigenvalues
+    rel = np.abs(lam[1:] - target.eigenvalues[1:]) / target.eigenvalues[1:]
+    row = {"numeig": k, "vertices": target.sphere.nvertices, "fit_residual_max": best.relative_residual,
+           "fit_residual_mean": spectral_residuals(best.eigenvalues, target.eigenvalues[:k])[1],
+           "unseen_residual_max": float(rel[k - 1:].max()),
+           "unseen_residual_mean": float(rel[k - 1:].mean()),
+           "error_l2": err["relative_l2"], "error_log_rms": err["log_rms"],
+           "error_power": harm["power_error"], "iterations": best.iterations, "status": best.status,
+           "seconds": result.seconds}
+    return result, row, lam
+
+
+def _figures(cfg: dict, state: dict, out) -> list:
+    """The errors and residuals against K, and the factors of the largest K; returns the file names."""
+    rows, ks, results = state["rows"], state["ks"], state["results"]
     kk = np.array(ks)
     fig, axes = figure(1, 2, width=13)
     axes[0].plot(kk, [r["error_l2"] for r in rows], "o-", label="factors, relative L2")
     axes[0].plot(kk, [r["error_power"] for r in rows], "s--", label="harmonic power (O(3) invariant)")
-    axes[0].axhline(deviation, color="k", ls=":", label="constant factor")
+    axes[0].axhline(state["deviation"], color="k", ls=":", label="constant factor")
     axes[0].set_xlabel("number of fitted eigenvalues K")
     axes[0].set_ylabel("relative error against the cMCF factors")
     axes[0].legend(fontsize=8)
     axes[0].grid(True, alpha=0.3)
     for key, style in (("fit_residual_mean", "o-"), ("unseen_residual_mean", "s-"), ("unseen_residual_max", "^:")):
         axes[1].semilogy(kk, [max(r[key], 1e-17) for r in rows], style, label=key)
-    axes[1].axhline(cmcf_mean, color="k", ls=":", label="cMCF factors (mean)")
+    axes[1].axhline(state["cmcf_mean"], color="k", ls=":", label="cMCF factors (mean)")
     axes[1].set_xlabel("number of fitted eigenvalues K")
-    axes[1].set_ylabel(f"relative eigenvalue residual (unseen: K..{ktot - 1})")
+    axes[1].set_ylabel(f"relative eigenvalue residual (unseen: K..{state['ktot'] - 1})")
     axes[1].legend(fontsize=8)
     axes[1].grid(True, which="both", alpha=0.3)
     save_figure(fig, out / "error_vs_numeig.png")
     fig = plot_vertex_factors(results[-1].model.mesh, results[-1].best.params, results[-1].target.factors)
     fig.suptitle(f"K = {ks[-1]}: cMCF factors, fitted factors, difference")
     save_figure(fig, out / "factors_largest_k.png")
+    return ["error_vs_numeig.png", "factors_largest_k.png"]
 
+
+def _summary(cfg: dict, state: dict) -> tuple[str, dict]:
+    """The Finding's text and its key numbers."""
+    l, m, p = cfg["l"], cfg["m"], cfg["p"]
+    rows, ks, mesh, target = state["rows"], state["ks"], state["mesh"], state["target"]
+    deviation, cmcf_mean = state["deviation"], state["cmcf_mean"]
     err = np.array([r["error_l2"] for r in rows])
-    rho = spearman(kk, err)
+    rho = spearman(np.array(ks), err)
     best_i = int(np.argmin(err))
     numbers = {"numeig": ks, "error_l2": err.tolist(), "unseen_residual_mean": [r["unseen_residual_mean"] for r in rows],
                "spearman_error_vs_numeig": rho, "cmcf_residual_mean": cmcf_mean}
@@ -93,7 +120,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         + ", ".join(f"{r['fit_residual_max']:.0e}" for r in rows)
         + ". The factor error against cMCF is " + ", ".join(f"{e:.3f}" for e in err)
         + f" (Spearman correlation with K {rho:.2f}; smallest {err[best_i]:.3f} at K = {ks[best_i]}), and the mean "
-        f"relative residual on the unseen eigenvalues up to {ktot - 1} is "
+        f"relative residual on the unseen eigenvalues up to {state['ktot'] - 1} is "
         + ", ".join(f"{r['unseen_residual_mean']:.1e}" for r in rows)
         + f", against {cmcf_mean:.1e} for the cMCF factors themselves. The fits stop by "
         + ", ".join(f"{r['status']} (K={r['numeig']})" for r in rows)
@@ -101,7 +128,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         + ("pull the fit towards the cMCF factors" if rho < -0.8 else "do not clearly pull the fit towards the cMCF "
            "factors")
         + f": with {mesh.nvertices} free factors even K = {ks[-1]} leaves the problem underdetermined.")
-    return Finding(summary, {"pl_numeig": rows}, ["error_vs_numeig.png", "factors_largest_k.png"], numbers)
+    return summary, numbers
 
 
 register(Experiment(
