@@ -25,42 +25,64 @@ from .fitting import (Progress, harmonic_errors, single_threaded, spearman, spec
 
 
 def run(cfg: dict, out, progress: bool) -> Finding:
-    l, m, k = cfg["l"], cfg["m"], cfg["numeig"]
-    opts = FitOptions(optimizer="lm", schedule=(), starts=cfg["starts"], max_iter=cfg["max_iter"], reg=cfg["reg"], seed=cfg["seed"])
+    state = _compute(cfg, progress)
+    write_h5(out / "results.h5", state["h5"])
+    files = _figures(cfg, state, out)
+    summary, numbers = _summary(cfg, state)
+    return Finding(summary, {"pl_perturbation": state["rows"]}, files, numbers)
+
+
+def _compute(cfg: dict, progress: bool) -> dict:
+    """One star surface and fit per p, its row and HDF5 group."""
     rows, h5, meshes, results = [], {}, [], []
     bar = Progress(progress, len(cfg["p_values"]), "pl-perturbation")
     with single_threaded():
         for i, p in enumerate(cfg["p_values"]):
-            mesh = star_surface(l, m, p, cfg["subdivisions"])
-            target = mesh_target(mesh, 12, k, cfg["lmax_factor"], name=f"star({l},{m},{p:g})")
-            model = MeshModel(target.sphere)
-            result = fit(target, model, opts)
+            aligned = cfg["align"] == "all" or (cfg["align"] == "largest" and i == len(cfg["p_values"]) - 1)
+            mesh, target, result, row = _fit(cfg, p, aligned)
+            rows.append(row)
             best = result.best
-            err = vertex_factor_errors(model.vertex_areas, best.params, target.factors)
-            cmcf_max, cmcf_mean = spectral_residuals(model.spectrum(target.factors, k).eigenvalues,
-                                                     target.eigenvalues)
-            harm = harmonic_errors(target.sphere, best.params, target.factors, cfg["lmax_factor"],
-                                   aligned=cfg["align"] == "all"
-                                   or (cfg["align"] == "largest" and i == len(cfg["p_values"]) - 1))
-            rows.append({"p": p, "vertices": mesh.nvertices, "factor_min": float(target.factors.min()),
-                         "factor_max": float(target.factors.max()), "cmcf_residual_max": cmcf_max,
-                         "cmcf_residual_mean": cmcf_mean, "fit_residual_max": best.relative_residual,
-                         "fit_residual_mean": spectral_residuals(best.eigenvalues, target.eigenvalues)[1],
-                         "error_l2": err["relative_l2"], "error_log_rms": err["log_rms"],
-                         "error_power": harm["power_error"],
-                         "error_aligned_harmonic": harm["aligned_error"], "truth_deviation_l2": err["baseline_l2"],
-                         "recovered_fraction": 1.0 - err["relative_l2"] / max(err["baseline_l2"], 1e-300),
-                         "iterations": best.iterations, "status": best.status, "seconds": result.seconds,
-                         "successful_starts": result.success_count})
             h5[f"p={p:g}"] = {"sphere_vertices": target.sphere.vertices, "faces": target.sphere.faces,
                               "surface_vertices": mesh.vertices, "cmcf_factors": target.factors,
                               "fitted_factors": best.params, "target_eigenvalues": target.eigenvalues,
                               "fitted_eigenvalues": best.eigenvalues, "p": float(p)}
             meshes.append(mesh)
             results.append(result)
-            bar.step(f"p = {p:g}: error {err['relative_l2']:.3f}, residual {best.relative_residual:.1e}")
-    write_h5(out / "results.h5", h5)
+            bar.step(f"p = {p:g}: error {row['error_l2']:.3f}, residual {best.relative_residual:.1e}")
+    return {"rows": rows, "h5": h5, "meshes": meshes, "results": results}
 
+
+def _fit(cfg: dict, p: float, aligned: bool) -> tuple:
+    """The star surface of amplitude p, its target, the fit of its spectrum and its row."""
+    l, m, k = cfg["l"], cfg["m"], cfg["numeig"]
+    opts = FitOptions(optimizer="lm", schedule=(), starts=cfg["starts"], max_iter=cfg["max_iter"], reg=cfg["reg"], seed=cfg["seed"])
+    mesh = star_surface(l, m, p, cfg["subdivisions"])
+    target = mesh_target(mesh, 12, k, cfg["lmax_factor"], name=f"star({l},{m},{p:g})")
+    model = MeshModel(target.sphere)
+    result = fit(target, model, opts)
+    best = result.best
+    err = vertex_factor_errors(model.vertex_areas, best.params, target.factors)
+    cmcf_max, cmcf_mean = spectral_residuals(model.spectrum(target.factors, k).eigenvalues,
+                                             target.eigenvalues)
+    harm = harmonic_errors(target.sphere, best.params, target.factors, cfg["lmax_factor"], aligned=aligned)
+    row = {"p": p, "vertices": mesh.nvertices, "factor_min": float(target.factors.min()),
+           "factor_max": float(target.factors.max()), "cmcf_residual_max": cmcf_max,
+           "cmcf_residual_mean": cmcf_mean, "fit_residual_max": best.relative_residual,
+           "fit_residual_mean": spectral_residuals(best.eigenvalues, target.eigenvalues)[1],
+           "error_l2": err["relative_l2"], "error_log_rms": err["log_rms"],
+           "error_power": harm["power_error"],
+           "error_aligned_harmonic": harm["aligned_error"], "truth_deviation_l2": err["baseline_l2"],
+           "recovered_fraction": 1.0 - err["relative_l2"] / max(err["baseline_l2"], 1e-300),
+           "iterations": best.iterations, "status": best.status, "seconds": result.seconds,
+           "successful_starts": result.success_count}
+    return mesh, target, result, row
+
+
+def _figures(cfg: dict, state: dict, out) -> list:
+    """Errors and residuals against p, the factors at the largest p, the surfaces; returns the file names."""
+    import matplotlib.pyplot as plt
+
+    rows, meshes, results = state["rows"], state["meshes"], state["results"]
     ps = np.array([r["p"] for r in rows])
     fig, axes = figure(1, 2, width=13)
     for key, style in (("error_l2", "o-"), ("error_power", "s--"), ("truth_deviation_l2", "k:"),
@@ -69,18 +91,16 @@ def run(cfg: dict, out, progress: bool) -> Finding:
             axes[0].plot(ps, [r[key] for r in rows], style, label=key)
     axes[0].set_xlabel("perturbation p")
     axes[0].set_ylabel("relative error of the factors")
-    axes[0].set_title(f"recovery of the cMCF factors, |Y_{l}^{m}| stars, {rows[0]['vertices']} vertices")
+    axes[0].set_title(f"recovery of the cMCF factors, |Y_{cfg['l']}^{cfg['m']}| stars, {rows[0]['vertices']} vertices")
     axes[0].legend(fontsize=8)
     axes[0].grid(True, alpha=0.3)
     for key, style in (("fit_residual_max", "o-"), ("fit_residual_mean", "s-"), ("cmcf_residual_max", "k:")):
         axes[1].semilogy(ps, [max(r[key], 1e-17) for r in rows], style, label=key)
     axes[1].set_xlabel("perturbation p")
-    axes[1].set_ylabel(f"relative eigenvalue residual (first {k})")
+    axes[1].set_ylabel(f"relative eigenvalue residual (first {cfg['numeig']})")
     axes[1].legend(fontsize=8)
     axes[1].grid(True, which="both", alpha=0.3)
     save_figure(fig, out / "error_vs_p.png")
-
-    import matplotlib.pyplot as plt
 
     fig = plot_vertex_factors(results[-1].model.mesh, results[-1].best.params, results[-1].target.factors)
     fig.suptitle(f"p = {ps[-1]:g}: cMCF factors, fitted factors, difference (Hammer projection)")
@@ -89,7 +109,14 @@ def run(cfg: dict, out, progress: bool) -> Finding:
     for i, (mesh, p) in enumerate(zip(meshes, ps)):
         render_mesh(mesh, ax=fig.add_subplot(1, len(meshes), i + 1, projection="3d"), title=f"p = {p:g}")
     save_figure(fig, out / "surfaces.png")
+    return ["error_vs_p.png", "factors_largest_p.png", "surfaces.png"]
 
+
+def _summary(cfg: dict, state: dict) -> tuple[str, dict]:
+    """The Finding's text and its key numbers."""
+    l, m, k = cfg["l"], cfg["m"], cfg["numeig"]
+    rows = state["rows"]
+    ps = np.array([r["p"] for r in rows])
     err = np.array([r["error_l2"] for r in rows])
     rho = spearman(ps, err)
     grows = bool(np.all(np.diff(err) > 0))
@@ -123,8 +150,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         f"{rows[0]['cmcf_residual_max']:.1e} to {rows[-1]['cmcf_residual_max']:.1e} (discretization), a bound on how "
         f"close an exact fit can be expected to come. The study's qualitative claim, harder recovery for larger p, "
         f"is {'reproduced' if rho > 0.5 else 'not clearly reproduced'}.")
-    return Finding(summary, {"pl_perturbation": rows}, ["error_vs_p.png", "factors_largest_p.png", "surfaces.png"],
-                   numbers)
+    return summary, numbers
 
 
 register(Experiment(
