@@ -50,42 +50,67 @@ def _structured(text: str, budget: int, numeig: int, lmax_factor: int) -> tuple:
 
 
 def run(cfg: dict, out, progress: bool) -> Finding:
-    lb, la, k = cfg["lmax"], cfg["lmax_factor"], cfg["numeig"]
+    state = _compute(cfg, progress)
+    for name, result in state["results"].items():
+        save_result(out / f"fit_{name}.h5", result)
+    files = _figures(cfg, state, out)
+    summary, numbers = _summary(cfg, state)
+    return Finding(summary, {"sh_inverse": state["rows"]}, files, numbers)
+
+
+def _fit_options(cfg: dict) -> dict:
+    """The four fits' options: raw, regularized, structured (the same budget) and shspec's default search."""
     budget = cfg["max_iter"]
     base = dict(starts=cfg["starts"], seed=cfg["seed"], max_iter=budget, basin_hops=0)
-    fits = {"raw": FitOptions(**base, schedule=()),
+    return {"raw": FitOptions(**base, schedule=()),
             "regularized": FitOptions(**base, schedule=(), reg=cfg["reg"]),
-            "structured": FitOptions(**base, schedule=_structured(cfg["schedule"], budget, k, la)),
+            "structured": FitOptions(**base, schedule=_structured(cfg["schedule"], budget, cfg["numeig"],
+                                                                  cfg["lmax_factor"])),
             "search": FitOptions(starts=cfg["starts"], seed=cfg["seed"], max_iter=cfg["search_max_iter"],
                                  basin_hops=cfg["search_hops"], hop_grid=cfg["search_grid"])}
+
+
+def _compute(cfg: dict, progress: bool) -> dict:
+    """The blob's target, the four fits and their rows."""
+    fits = _fit_options(cfg)
     bar = Progress(progress, len(fits), "sh-inverse")
     rows, results, alignments = [], {}, {}
     with single_threaded():
-        truth = blob_factor(la)
-        target = harmonic_target(truth, lb, k, name="blob")
-        model = HarmonicModel(lb, la)
+        truth = blob_factor(cfg["lmax_factor"])
+        target = harmonic_target(truth, cfg["lmax"], cfg["numeig"], name="blob")
+        model = HarmonicModel(cfg["lmax"], cfg["lmax_factor"])
         for name, opts in fits.items():
             result = fit(target, model, opts)
-            best = result.best
             # align() took 5-10 s per call here (thousands of scipy Rotation objects); quick runs align only "raw".
             al = align(result.factor(), target.truth) if cfg["align_all"] or name == "raw" else None
-            # The energy without the regularizer, so that the three fits compare on the same spectral misfit.
-            lam = best.eigenvalues
-            spectral = 0.5 * float(np.sum(((lam[1:] - target.eigenvalues[1:]) / target.eigenvalues[1:]) ** 2))
-            ident = result.identifiability()
-            stages = len(default_schedule(model, k) if opts.schedule is None else opts.schedule) or 1
-            rows.append({"fit": name, "reg": opts.reg, "stages": stages,
-                         "iterations": best.iterations, "seconds": result.seconds, "energy": best.energy,
-                         "spectral_energy": spectral, "residual_max": best.relative_residual,
-                         "error_aligned": al.relative_error if al else float("nan"),
-                         "estimated_error": ident.estimated_error, "condition": ident.condition,
-                         "power_error": _power_error(result.factor().coefficients, truth.coefficients),
-                         "status": best.status})
+            rows.append(_row(name, opts, result, al, model, target, truth, cfg["numeig"]))
             results[name], alignments[name] = result, al
-            save_result(out / f"fit_{name}.h5", result)
-            bar.step(f"{name}: energy {best.energy:.2e}, error {rows[-1]['error_aligned']:.2g}, "
+            bar.step(f"{name}: energy {result.best.energy:.2e}, error {rows[-1]['error_aligned']:.2g}, "
                      f"{result.seconds:.0f} s")
+    return {"rows": rows, "results": results, "alignments": alignments, "truth": truth}
 
+
+def _row(name: str, opts, result, al, model, target, truth, k: int) -> dict:
+    """One fit's row: its energies, residual, measured and estimated errors."""
+    best = result.best
+    # The energy without the regularizer, so that the three fits compare on the same spectral misfit.
+    lam = best.eigenvalues
+    spectral = 0.5 * float(np.sum(((lam[1:] - target.eigenvalues[1:]) / target.eigenvalues[1:]) ** 2))
+    ident = result.identifiability()
+    stages = len(default_schedule(model, k) if opts.schedule is None else opts.schedule) or 1
+    return {"fit": name, "reg": opts.reg, "stages": stages,
+            "iterations": best.iterations, "seconds": result.seconds, "energy": best.energy,
+            "spectral_energy": spectral, "residual_max": best.relative_residual,
+            "error_aligned": al.relative_error if al else float("nan"),
+            "estimated_error": ident.estimated_error, "condition": ident.condition,
+            "power_error": _power_error(result.factor().coefficients, truth.coefficients),
+            "status": best.status}
+
+
+def _figures(cfg: dict, state: dict, out) -> list:
+    """The aligned factors of the raw and regularized fits, and every fit's history; returns the file names."""
+    lb, la, k = cfg["lmax"], cfg["lmax_factor"], cfg["numeig"]
+    results, alignments, truth = state["results"], state["alignments"], state["truth"]
     figures = []
     for name in ("raw", "regularized"):
         if alignments[name] is None:
@@ -113,35 +138,42 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     save_figure(fig, out / "history.png")
+    return [*figures, "history.png"]
 
+
+def _outcome(row: dict) -> str:
+    """One fit's result in words."""
+    return (f"spectral energy {row['spectral_energy']:.2e}, largest relative residual {row['residual_max']:.1e}, "
+            f"error {row['error_aligned']:.2g} against {row['estimated_error']:.2g} estimated from that residual "
+            f"(power error {row['power_error']:.3f}), {row['iterations']} iterations, {row['seconds']:.0f} s")
+
+
+def _summary(cfg: dict, state: dict) -> tuple[str, dict]:
+    """The Finding's text and its key numbers."""
+    lb, la, k = cfg["lmax"], cfg["lmax_factor"], cfg["numeig"]
+    budget = cfg["max_iter"]
+    rows = state["rows"]
     r = {row["fit"]: row for row in rows}
     numbers = {name: {key: row[key] for key in ("energy", "spectral_energy", "residual_max", "error_aligned",
                                                    "estimated_error", "seconds", "iterations")}
                for name, row in r.items()}
     better = "structured" if r["structured"]["spectral_energy"] < r["raw"]["spectral_energy"] else "single-stage"
-
-    def outcome(name: str) -> str:
-        row = r[name]
-        return (f"spectral energy {row['spectral_energy']:.2e}, largest relative residual {row['residual_max']:.1e}, "
-                f"error {row['error_aligned']:.2g} against {row['estimated_error']:.2g} estimated from that residual "
-                f"(power error {row['power_error']:.3f}), {row['iterations']} iterations, {row['seconds']:.0f} s")
-
     summary = (
         f"Harmonic inverse of the blob (degree 6, fitted with La = {la}: {(la + 1) ** 2} coefficients, Lb = {lb}, "
         f"K = {k} eigenvalues, {cfg['starts']} random start(s), a budget of {budget} Levenberg-Marquardt iterations "
         f"for the first three fits; errors are relative L2 errors of rho after Möbius/O(3) alignment, estimates the "
-        f"linearized error the final residual leaves). Raw (Section 3.4.1): {outcome('raw')}. Regularized with "
-        f"R = {cfg['reg']:g} (Section 3.4.2): {outcome('regularized')}. The structured schedule (appendix A.2: "
+        f"linearized error the final residual leaves). Raw (Section 3.4.1): {_outcome(r['raw'])}. Regularized with "
+        f"R = {cfg['reg']:g} (Section 3.4.2): {_outcome(r['regularized'])}. The structured schedule (appendix A.2: "
         f"{cfg['schedule']}, then the full fit; {r['structured']['stages']} stages sharing the same budget): "
-        f"{outcome('structured')}. At equal iteration budget the {better} fit ends at the lower spectral energy. "
+        f"{_outcome(r['structured'])}. At equal iteration budget the {better} fit ends at the lower spectral energy. "
         f"shspec's default search (the degree ramp in {r['search']['stages']} stages, then up to "
-        f"{cfg['search_hops']} basin hops): {outcome('search')}"
+        f"{cfg['search_hops']} basin hops): {_outcome(r['search'])}"
         + ("" if cfg["align_all"] else " (quick run: only the raw fit is aligned; nan = not aligned)")
         + ". The fits stop by "
         + ", ".join(f"{row['fit']}: {row['status']}" for row in rows)
         + ("; a fit stopped by max_iter used its whole budget and is unfinished: its error is not that of a "
            "converged solution." if any(row["status"] == "max_iter" for row in rows) else "."))
-    return Finding(summary, {"sh_inverse": rows}, [*figures, "history.png"], numbers)
+    return summary, numbers
 
 
 register(Experiment(
