@@ -100,16 +100,30 @@ def _reach(label: str, v: dict) -> str:
 
 
 def run(cfg: dict, out, progress: bool) -> Finding:
-    ks, kinds, sizes = cfg["numeig_values"], cfg["perturbations"], cfg["sizes"]
-    for kind in kinds:
-        _degree(kind)  # bad settings fail before the minutes of work
+    state = _compute(cfg, progress)
+    write_h5(out / "results.h5", state["h5"])
+    files = _figures(cfg, state, out)
+    summary, numbers = _summary(cfg, state)
+    return Finding(summary, {"pl_basin": state["rows"], "isospectral": state["walks"]}, files, numbers)
+
+
+def _check(cfg: dict) -> None:
+    """Refuse bad settings before the minutes of work."""
+    ks, sizes, steps = cfg["numeig_values"], cfg["sizes"], cfg["isospectral_steps"]
+    for kind in cfg["perturbations"]:
+        _degree(kind)
     if not sizes or not all(isinstance(e, (int, float)) and e > 0 for e in sizes):
         raise InvalidArgumentError(f"pl-basin sizes must be positive RMS log errors, got {sizes!r}")
     if not ks or not all(isinstance(k, int) and k >= 2 for k in ks):
         raise InvalidArgumentError(f"pl-basin numeig_values must be integers >= 2, got {ks!r}")
-    steps = cfg["isospectral_steps"]
     if not all(isinstance(e, (int, float)) and e > 0 for e in steps):
         raise InvalidArgumentError(f"pl-basin isospectral_steps must be positive RMS log steps, got {steps!r}")
+
+
+def _compute(cfg: dict, progress: bool) -> dict:
+    """For each K: the perturbed starts' fits and the walk along the isospectral set, with their rows."""
+    _check(cfg)
+    ks, kinds, sizes, steps = cfg["numeig_values"], cfg["perturbations"], cfg["sizes"], cfg["isospectral_steps"]
     bar = Progress(progress, 1 + len(ks) * (len(kinds) * len(sizes) + 1), "pl-basin")
     options = FitOptions(schedule=(), starts=1, basin_hops=0, reg=0.0, optimizer="lm", max_iter=cfg["max_iter"],
                          seed=cfg["seed"])
@@ -118,47 +132,61 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         mesh = load_mesh_area_4pi(cfg["mesh_dir"], cfg["mesh"])
         full = mesh_target(mesh, 12, max(ks), 6, name=cfg["mesh"], source="cmcf")
         model = MeshModel(full.sphere, transform="exp")
-        s_true = np.log(full.factors)
         bar.step(f"{cfg['mesh']}: target (b) with {max(ks)} eigenvalues")
         for k in ks:
             target = replace(full, eigenvalues=np.asarray(full.eigenvalues)[:k])
-            lam_star = target.eigenvalues
             basis = determined_directions(model, target.factors, k)
-            near = _gaps(lam_star)
-            per_k[k] = {"determined_directions": int(basis.shape[1]),
-                        "median_relative_gap": float(np.median(near / lam_star[1:])),
-                        "smallest_relative_gap": float(np.min(near / lam_star[1:]))}
+            per_k[k] = _gaps_summary(target.eigenvalues, basis)
             # the same perturbations for every K: the seed restarts
             rng = np.random.default_rng(cfg["seed"])
             for kind in kinds:
                 for eps in sizes:
-                    s0 = s_true + eps * _perturbation(kind, rng, target.sphere)
-                    lam0 = model.spectrum(np.exp(s0), k).eigenvalues
-                    t0 = time.process_time()
-                    best = fit(target, model, options, init=np.exp(s0)).best
-                    cpu = time.process_time() - t0
-                    d = np.log(best.params) - s_true
-                    det = float(np.linalg.norm(basis.T @ d) / np.sqrt(d.size))
-                    shift = np.abs(lam0[1:] - lam_star[1:])
-                    rows.append({"numeig": k, "perturbation": kind, "start_log_rms": eps,
-                                 "start_eigenvalue_shift_median": float(np.median(shift / lam_star[1:])),
-                                 "start_beyond_gap": int(np.sum(shift > near)),
-                                 "start_relative_residual": relative_residual(lam0, lam_star),
-                                 "relative_residual": best.relative_residual,
-                                 "rms_residual": rms_relative_residual(best.eigenvalues, lam_star),
-                                 "converged": bool(best.relative_residual <= CONVERGED),
-                                 "log_rms": float(np.sqrt(np.mean(d * d))), "log_rms_determined": det,
-                                 "iterations": best.iterations, "status": best.status, "cpu_s": cpu})
-                    h5[f"K={k} {kind} eps={eps:g}"] = {"start_log_factors": s0,
-                                                      "fitted_log_factors": np.log(best.params)}
-                    bar.step(f"K = {k}, {kind} ε = {eps:g}: residual {best.relative_residual:.1e}, log error over "
-                             f"the determined directions {det:.2e}")
+                    row, h5[f"K={k} {kind} eps={eps:g}"] = _start(model, target, basis, options, kind, eps, rng)
+                    rows.append(row)
+                    bar.step(f"K = {k}, {kind} ε = {eps:g}: residual {row['relative_residual']:.1e}, log error over "
+                             f"the determined directions {row['log_rms_determined']:.2e}")
             walks += _walk(model, target, basis, steps, np.random.default_rng([cfg["seed"], k]), h5)
             bar.step(f"K = {k}: isospectral points at steps {steps}")
     h5["target"] = {"sphere_vertices": full.sphere.vertices, "faces": full.sphere.faces,
                     "cmcf_factors": full.factors, "target_eigenvalues": np.asarray(full.eigenvalues)}
-    write_h5(out / "results.h5", h5)
+    return {"rows": rows, "walks": walks, "h5": h5, "per_k": per_k, "nparams": model.nparams}
 
+
+def _gaps_summary(lam_star: np.ndarray, basis: np.ndarray) -> dict:
+    """The directions K eigenvalues determine and their median and smallest gap relative to λ."""
+    near = _gaps(lam_star)
+    return {"determined_directions": int(basis.shape[1]),
+            "median_relative_gap": float(np.median(near / lam_star[1:])),
+            "smallest_relative_gap": float(np.min(near / lam_star[1:]))}
+
+
+def _start(model, target, basis, options, kind: str, eps: float, rng) -> tuple[dict, dict]:
+    """LM from the truth perturbed by ``kind`` at RMS log ``eps``: its row and its HDF5 group."""
+    lam_star, s_true, k = target.eigenvalues, np.log(target.factors), target.numeig
+    s0 = s_true + eps * _perturbation(kind, rng, target.sphere)
+    lam0 = model.spectrum(np.exp(s0), k).eigenvalues
+    t0 = time.process_time()
+    best = fit(target, model, options, init=np.exp(s0)).best
+    cpu = time.process_time() - t0
+    d = np.log(best.params) - s_true
+    det = float(np.linalg.norm(basis.T @ d) / np.sqrt(d.size))
+    shift = np.abs(lam0[1:] - lam_star[1:])
+    row = {"numeig": k, "perturbation": kind, "start_log_rms": eps,
+           "start_eigenvalue_shift_median": float(np.median(shift / lam_star[1:])),
+           "start_beyond_gap": int(np.sum(shift > _gaps(lam_star))),
+           "start_relative_residual": relative_residual(lam0, lam_star),
+           "relative_residual": best.relative_residual,
+           "rms_residual": rms_relative_residual(best.eigenvalues, lam_star),
+           "converged": bool(best.relative_residual <= CONVERGED),
+           "log_rms": float(np.sqrt(np.mean(d * d))), "log_rms_determined": det,
+           "iterations": best.iterations, "status": best.status, "cpu_s": cpu}
+    return row, {"start_log_factors": s0, "fitted_log_factors": np.log(best.params)}
+
+
+def _figures(cfg: dict, state: dict, out) -> list:
+    """The end error and the shifted eigenvalues against the start's error ε; returns the file names."""
+    ks, kinds, sizes = cfg["numeig_values"], cfg["perturbations"], cfg["sizes"]
+    rows, walks = state["rows"], state["walks"]
     fig, axes = figure(1, 2, width=13)
     styles = ["-", "--", ":", "-."]
     for ik, k in enumerate(ks):
@@ -193,28 +221,35 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         ax.legend(fontsize=7)
         ax.grid(True, which="both", alpha=0.3)
     save_figure(fig, out / "basin.png")
+    return ["basin.png"]
 
+
+def _span(values) -> str:
+    """Integers as 'a' or 'a-b' (smallest, largest), or 'none'."""
+    if not values:
+        return "none"
+    return str(values[0]) if min(values) == max(values) else f"{min(values)}-{max(values)}"
+
+
+def _summary(cfg: dict, state: dict) -> tuple[str, dict]:
+    """The Finding's text and its key numbers."""
+    ks, kinds = cfg["numeig_values"], cfg["perturbations"]
+    rows, walks, per_k = state["rows"], state["walks"], state["per_k"]
     radius = {f"K={k} {kind}": _radius([r for r in rows if r["numeig"] == k and r["perturbation"] == kind])
               for k in ks for kind in kinds}
     failed = [r for r in rows if not r["converged"]]
     worse = [r for r in failed if r["log_rms_determined"] > r["start_log_rms"]]
-
-    def span(values):
-        if not values:
-            return "none"
-        return str(values[0]) if min(values) == max(values) else f"{min(values)}-{max(values)}"
-
     beyond = {k: ([r["start_beyond_gap"] for r in rows if r["numeig"] == k and r["converged"]],
                   [r["start_beyond_gap"] for r in rows if r["numeig"] == k and not r["converged"]]) for k in ks}
     summary = (
         f"Levenberg-Marquardt in log factors (R = 0, at most {cfg['max_iter']} iterations) on the exactly "
-        f"representable target (b) of {cfg['mesh']} ({model.nparams} vertices), started from the cMCF factors "
+        f"representable target (b) of {cfg['mesh']} ({state['nparams']} vertices), started from the cMCF factors "
         f"perturbed by an RMS log error ε, converges (residual <= {CONVERGED:g}) for "
         + "; ".join(_reach(f"K = {k} ({per_k[k]['determined_directions']} directions determined, median relative "
                            f"gap {per_k[k]['median_relative_gap']:.1e}), {kind}",
                            radius[f"K={k} {kind}"]) for k in ks for kind in kinds)
         + ". Eigenvalues of the start shifted by more than the gap to the target's nearest neighbour: "
-        + "; ".join(f"K = {k}: {span(ok)} in the converged starts, {span(bad)} in the failed ones"
+        + "; ".join(f"K = {k}: {_span(ok)} in the converged starts, {_span(bad)} in the failed ones"
                     for k, (ok, bad) in beyond.items())
         + (f". {len(worse)} of the {len(failed)} failed starts ended further from the truth than they began. "
            "Sorted matching pairs the shifted eigenvalues with the wrong modes, and the least-squares landscape has "
@@ -232,7 +267,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
     numbers = {"per_numeig": per_k, "radius": radius, "failed_ending_further": len(worse), "failed": len(failed),
                "beyond_gap": {k: {"converged": ok, "failed": bad} for k, (ok, bad) in beyond.items()},
                "isospectral": {k: {w["step_log_rms"]: w["log_rms_determined"] for w in reached[k]} for k in ks}}
-    return Finding(summary, {"pl_basin": rows, "isospectral": walks}, ["basin.png"], numbers)
+    return summary, numbers
 
 
 register(Experiment(
