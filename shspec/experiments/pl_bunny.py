@@ -58,123 +58,175 @@ def _errors(model, c, truth) -> dict:
             "fitted_max": float(np.max(c)), "cmcf_min": float(np.min(truth)), "cmcf_max": float(np.max(truth))}
 
 
+def _hausdorff(sphere, c, mesh, eopt: EmbedOptions, samples: int) -> tuple:
+    """The embedding of factors c on ``sphere`` and its Hausdorff distance to ``mesh`` over the bounding diagonal."""
+    e = embed(sphere, c, eopt)
+    return e.mesh, surface_distance(e.mesh, mesh, samples=samples).hausdorff_relative
+
+
 def run(cfg: dict, out, progress: bool) -> Finding:
+    state = _compute(cfg, progress)
+    write_h5(out / "results.h5", state["h5"])
+    files = _figures(cfg, state, out)
+    summary, numbers = _summary(cfg, state)
+    return Finding(summary, {"pl_bunny": numbers["runs"]}, files, numbers)
+
+
+def _compute(cfg: dict, progress: bool) -> dict:
+    """Every run's fit on its own cMCF sphere; for the first run also target (b), the adaptive and recursive fits."""
     if not 0 < cfg["numeig_fraction"] < 1:
         raise InvalidArgumentError(f"numeig_fraction must be in (0, 1), got {cfg['numeig_fraction']}")
     runs = [_parse_run(r) for r in cfg["runs"]]
     bar = Progress(progress, 2 * len(runs) + 3, "pl-bunny")
     eopt = EmbedOptions(final_iterations=cfg["embed_iterations"], check_intersections=False)
-    rows, h5, panels = [], {}, []
-
-    def hausdorff(sphere, c, mesh):
-        e = embed(sphere, c, eopt)
-        return e.mesh, surface_distance(e.mesh, mesh, samples=cfg["distance_samples"]).hausdorff_relative
-
+    rows, h5, panels, first = [], {}, [], None
     with single_threaded():
-        for i, (name, reg) in enumerate(runs):
-            mesh = load_mesh_area_4pi(cfg["mesh_dir"], name)
-            k = max(2, int(round(cfg["numeig_fraction"] * mesh.nvertices)))
-            flow = cmcf(mesh)
-            target = mesh_target(mesh, 12, k, 6, name=name, flow=flow)
-            model = MeshModel(target.sphere, transform="exp", reg_kind=cfg["reg_kind"])
-            t0 = time.process_time()
-            result = fit(target, model, _options(cfg, reg))
-            cpu = time.process_time() - t0
-            best = result.best
-            row = {"run": f"{name} R={reg:g}", "case": "(a) own cMCF sphere", "vertices": mesh.nvertices,
-                   "relative_residual": best.relative_residual, **_errors(model, best.params, target.factors),
-                   "iterations": best.iterations, "status": best.status, "cpu_s": cpu}
-            bar.step(f"{name} R = {reg:g}: residual {best.relative_residual:.2e}, log correlation "
-                     f"{row['log_correlation']:.2f}")
-            emb_fit, row["embedded_hausdorff"] = hausdorff(target.sphere, best.params, mesh)
-            emb_true, row["cmcf_embedded_hausdorff"] = hausdorff(target.sphere, target.factors, mesh)
-            bar.step(f"{name}: embedded fit at Hausdorff {row['embedded_hausdorff']:.3f}, cMCF factors "
-                     f"{row['cmcf_embedded_hausdorff']:.3f}")
-            row["numeig"] = k
+        for name, reg in runs:
+            row, panel, h5[f"{name} R={reg:g}"], fitted = _own_sphere_fit(cfg, name, reg, eopt, bar)
             rows.append(row)
-            panels.append((name, reg, target.sphere, target.factors, best.params, mesh, emb_true, emb_fit))
-            h5[f"{name} R={reg:g}"] = {"sphere_vertices": target.sphere.vertices, "faces": mesh.faces,
-                                       "cmcf_factors": target.factors, "fitted_factors": best.params,
-                                       "target_eigenvalues": target.eigenvalues}
-            if i == 0:
-                first = (name, reg, mesh, target, flow, k)
+            panels.append(panel)
+            first = first or fitted
+        rows.append(_target_b(cfg, first, bar))
+        rows.append(_adaptive(cfg, first, rows[0]["log_rms"], eopt, bar))
+        rec, rec_rows = _recursive(cfg, first, eopt, bar)
+        rows += rec_rows
+    return {"rows": rows, "h5": h5, "panels": panels, "recursive": rec}
 
-        name, reg, mesh, first_target, flow, k = first
-        # (b) the exactly representable target, along a regularization path ending at R = 0
-        tb = mesh_target(mesh, 12, k, 6, name=name, source="cmcf", flow=flow)
-        model = MeshModel(tb.sphere, transform="exp", reg_kind=cfg["reg_kind"])
-        c, t0 = None, time.process_time()
-        for r in cfg["path"]:
-            c = fit(tb, model, _options(cfg, r), init=c).best.params
-        res = fit(tb, model, _options(cfg, 0.0), init=c).best
-        B = determined_directions(model, tb.factors, k)
-        d = np.log(res.params) - np.log(tb.factors)
-        rows.append({"run": f"{name} path {cfg['path']} -> 0", "case": "(b) cMCF sphere + factors",
-                     "vertices": mesh.nvertices, "relative_residual": res.relative_residual,
-                     **_errors(model, res.params, tb.factors), "iterations": res.iterations, "status": res.status,
-                     "cpu_s": time.process_time() - t0, "determined_directions": int(B.shape[1]),
-                     "log_rms_determined": float(np.linalg.norm(B.T @ d) / np.sqrt(d.size))})
-        bar.step(f"(b): residual {res.relative_residual:.2e}, RMS log error over {B.shape[1]} determined "
-                 f"directions {rows[-1]['log_rms_determined']:.3g}")
-        # adaptive from an icosphere
-        t0 = time.process_time()
-        ad = adaptive_fit(first_target, AdaptiveOptions(subdivisions=cfg["adaptive_subdivisions"],
-                                                        reg_kind=cfg["reg_kind"], fit=_options(cfg, reg)))
-        cmp = ad.result.model.compare(ad.result.best.params, first_target)
-        rows.append({"run": f"{name} R={reg:g} sizes {[st.nvertices for st in ad.stages]}",
-                     "case": "(a) adaptive from an icosphere", "vertices": ad.stages[-1].nvertices,
-                     "relative_residual": ad.result.best.relative_residual, "log_rms": cmp["log_rms"],
-                     "log_rms_centred": cmp["log_rms_centred"],
-                     "log_correlation": cmp["log_correlation"], "fitted_min": cmp["fitted_range"][0],
-                     "fitted_max": cmp["fitted_range"][1], "iterations": ad.result.best.iterations,
-                     "status": ad.result.best.status, "cpu_s": time.process_time() - t0,
-                     "log_rms_ratio_to_own_sphere": cmp["log_rms"] / rows[0]["log_rms"]})
-        # the re-embedding needs no alignment, which the log error does (a Möbius centring weighted by the fit)
-        rows[-1]["embedded_hausdorff"] = hausdorff(ad.result.model.mesh, ad.result.best.params, mesh)[1]
-        bar.step(f"adaptive: log RMS {cmp['log_rms']:.3f} ({rows[-1]['log_rms_ratio_to_own_sphere']:.2f}x own "
-                 f"sphere), embedded at Hausdorff {rows[-1]['embedded_hausdorff']:.3f}")
-        # recursive fit (Figure 2)
-        t0 = time.process_time()
-        rec = recursive_fit(first_target, options=RecursiveOptions(
-            passes=2, fit=_options(cfg, cfg["recursive_reg"]), embed=eopt, warm_start="init", log_factors=True,
-            reg_kind=cfg["reg_kind"]))
-        for j, ps in enumerate(rec.passes):
-            rows.append({"run": f"{name} R={cfg['recursive_reg']:g} pass {j + 1}", "case": "recursive",
-                         "vertices": mesh.nvertices, "relative_residual": ps.fit_residual,
-                         "fitted_min": float(ps.factors.min()), "fitted_max": float(ps.factors.max()),
-                         "status": ps.fit_status, "cpu_s": ps.cpu_seconds,
-                         "embedded_hausdorff": ps.hausdorff_relative})
-        bar.step(f"recursive: Hausdorff {rec.passes[0].hausdorff_relative:.3f} -> {rec.final.hausdorff_relative:.3f}")
-    write_h5(out / "results.h5", h5)
 
+def _own_sphere_fit(cfg: dict, name: str, reg: float, eopt: EmbedOptions, bar: Progress) -> tuple:
+    """Run "name:reg" on the mesh's own cMCF sphere: its row, its figure panel, its HDF5 group, and (name, reg, mesh,
+    target, flow, K) for the first run's further fits."""
+    mesh = load_mesh_area_4pi(cfg["mesh_dir"], name)
+    k = max(2, int(round(cfg["numeig_fraction"] * mesh.nvertices)))
+    flow = cmcf(mesh)
+    target = mesh_target(mesh, 12, k, 6, name=name, flow=flow)
+    model = MeshModel(target.sphere, transform="exp", reg_kind=cfg["reg_kind"])
+    t0 = time.process_time()
+    result = fit(target, model, _options(cfg, reg))
+    cpu = time.process_time() - t0
+    best = result.best
+    row = {"run": f"{name} R={reg:g}", "case": "(a) own cMCF sphere", "vertices": mesh.nvertices,
+           "relative_residual": best.relative_residual, **_errors(model, best.params, target.factors),
+           "iterations": best.iterations, "status": best.status, "cpu_s": cpu}
+    bar.step(f"{name} R = {reg:g}: residual {best.relative_residual:.2e}, log correlation "
+             f"{row['log_correlation']:.2f}")
+    samples = cfg["distance_samples"]
+    emb_fit, row["embedded_hausdorff"] = _hausdorff(target.sphere, best.params, mesh, eopt, samples)
+    emb_true, row["cmcf_embedded_hausdorff"] = _hausdorff(target.sphere, target.factors, mesh, eopt, samples)
+    bar.step(f"{name}: embedded fit at Hausdorff {row['embedded_hausdorff']:.3f}, cMCF factors "
+             f"{row['cmcf_embedded_hausdorff']:.3f}")
+    row["numeig"] = k
+    panel = (name, reg, target.sphere, target.factors, best.params, mesh, emb_true, emb_fit)
+    group = {"sphere_vertices": target.sphere.vertices, "faces": mesh.faces, "cmcf_factors": target.factors,
+             "fitted_factors": best.params, "target_eigenvalues": target.eigenvalues}
+    return row, panel, group, (name, reg, mesh, target, flow, k)
+
+
+def _target_b(cfg: dict, first: tuple, bar: Progress) -> dict:
+    """Target (b), the exactly representable one, fitted along the regularization path ending at R = 0: its row."""
+    name, reg, mesh, _, flow, k = first
+    tb = mesh_target(mesh, 12, k, 6, name=name, source="cmcf", flow=flow)
+    model = MeshModel(tb.sphere, transform="exp", reg_kind=cfg["reg_kind"])
+    c, t0 = None, time.process_time()
+    for r in cfg["path"]:
+        c = fit(tb, model, _options(cfg, r), init=c).best.params
+    res = fit(tb, model, _options(cfg, 0.0), init=c).best
+    B = determined_directions(model, tb.factors, k)
+    d = np.log(res.params) - np.log(tb.factors)
+    row = {"run": f"{name} path {cfg['path']} -> 0", "case": "(b) cMCF sphere + factors",
+           "vertices": mesh.nvertices, "relative_residual": res.relative_residual,
+           **_errors(model, res.params, tb.factors), "iterations": res.iterations, "status": res.status,
+           "cpu_s": time.process_time() - t0, "determined_directions": int(B.shape[1]),
+           "log_rms_determined": float(np.linalg.norm(B.T @ d) / np.sqrt(d.size))}
+    bar.step(f"(b): residual {res.relative_residual:.2e}, RMS log error over {B.shape[1]} determined "
+             f"directions {row['log_rms_determined']:.3g}")
+    return row
+
+
+def _adaptive(cfg: dict, first: tuple, own_log_rms: float, eopt: EmbedOptions, bar: Progress) -> dict:
+    """The adaptive fit from an icosphere of the first run's target: its row."""
+    name, reg, mesh, target, _, _ = first
+    t0 = time.process_time()
+    ad = adaptive_fit(target, AdaptiveOptions(subdivisions=cfg["adaptive_subdivisions"],
+                                              reg_kind=cfg["reg_kind"], fit=_options(cfg, reg)))
+    cmp = ad.result.model.compare(ad.result.best.params, target)
+    row = {"run": f"{name} R={reg:g} sizes {[st.nvertices for st in ad.stages]}",
+           "case": "(a) adaptive from an icosphere", "vertices": ad.stages[-1].nvertices,
+           "relative_residual": ad.result.best.relative_residual, "log_rms": cmp["log_rms"],
+           "log_rms_centred": cmp["log_rms_centred"],
+           "log_correlation": cmp["log_correlation"], "fitted_min": cmp["fitted_range"][0],
+           "fitted_max": cmp["fitted_range"][1], "iterations": ad.result.best.iterations,
+           "status": ad.result.best.status, "cpu_s": time.process_time() - t0,
+           "log_rms_ratio_to_own_sphere": cmp["log_rms"] / own_log_rms}
+    # the re-embedding needs no alignment, which the log error does (a Möbius centring weighted by the fit)
+    row["embedded_hausdorff"] = _hausdorff(ad.result.model.mesh, ad.result.best.params, mesh, eopt,
+                                           cfg["distance_samples"])[1]
+    bar.step(f"adaptive: log RMS {cmp['log_rms']:.3f} ({row['log_rms_ratio_to_own_sphere']:.2f}x own "
+             f"sphere), embedded at Hausdorff {row['embedded_hausdorff']:.3f}")
+    return row
+
+
+def _recursive(cfg: dict, first: tuple, eopt: EmbedOptions, bar: Progress) -> tuple:
+    """The recursive fit (Figure 2) of the first run's target: the result and a row per pass."""
+    name, _, mesh, target, _, _ = first
+    rec = recursive_fit(target, options=RecursiveOptions(
+        passes=2, fit=_options(cfg, cfg["recursive_reg"]), embed=eopt, warm_start="init", log_factors=True,
+        reg_kind=cfg["reg_kind"]))
+    rows = [{"run": f"{name} R={cfg['recursive_reg']:g} pass {j + 1}", "case": "recursive",
+             "vertices": mesh.nvertices, "relative_residual": ps.fit_residual,
+             "fitted_min": float(ps.factors.min()), "fitted_max": float(ps.factors.max()),
+             "status": ps.fit_status, "cpu_s": ps.cpu_seconds, "embedded_hausdorff": ps.hausdorff_relative}
+            for j, ps in enumerate(rec.passes)]
+    bar.step(f"recursive: Hausdorff {rec.passes[0].hausdorff_relative:.3f} -> {rec.final.hausdorff_relative:.3f}")
+    return rec, rows
+
+
+def _wide_figure():
+    """An empty figure for a row of five panels."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    return plt.figure(figsize=(22, 4.2))
+
+
+def _render_row(fig, meshes) -> None:
+    """Panels 3 to 5 of ``fig``: the (title, mesh) pairs rendered in 3D."""
+    for j, (title, m) in enumerate(meshes):
+        render_mesh(m, ax=fig.add_subplot(1, 5, j + 3, projection="3d"), up="y", view=(15.0, 30.0), title=title)
+
+
+def _figures(cfg: dict, state: dict, out) -> list:
+    """Figure 1 for every run and Figure 2 for the recursive fit; returns the file names."""
     files = []
-    for (name, reg, sphere, truth, c, mesh, emb_true, emb_fit) in panels:
-        fig = plt.figure(figsize=(22, 4.2))
+    for (name, reg, sphere, truth, c, mesh, emb_true, emb_fit) in state["panels"]:
+        fig = _wide_figure()
         lo, hi = np.log10(truth).min(), np.log10(truth).max()
         for j, (title, v) in enumerate((("log10 c: cMCF factors", truth), ("log10 c: fit", c))):
             ax = fig.add_subplot(1, 5, j + 1, projection="hammer")
             plot_hammer(sphere, np.clip(np.log10(v), lo, hi), ax=ax, title=title, percentiles=(0.0, 100.0))
-        for j, (title, m) in enumerate(((f"{name} (target)", mesh), ("embedded cMCF factors", emb_true),
-                                        (f"embedded fit, R = {reg:g}", emb_fit))):
-            render_mesh(m, ax=fig.add_subplot(1, 5, j + 3, projection="3d"), up="y", view=(15.0, 30.0), title=title)
+        _render_row(fig, ((f"{name} (target)", mesh), ("embedded cMCF factors", emb_true),
+                          (f"embedded fit, R = {reg:g}", emb_fit)))
         files.append(f"figure1_{name}.png" if f"figure1_{name}.png" not in files else f"figure1_{name}_R{reg:g}.png")
         save_figure(fig, out / files[-1])
-    fig = plt.figure(figsize=(22, 4.2))
-    p1, p2 = rec.passes
+    # Figure 2's target panel shows the last run's mesh, as it always has, though the recursive fit is the first run's
+    name, mesh = state["panels"][-1][0], state["panels"][-1][5]
+    fig = _wide_figure()
+    p1, p2 = state["recursive"].passes
     for j, (title, sphere, c) in enumerate((("log10 c: pass 1 (cMCF sphere)", p1.sphere, p1.factors),
                                             ("log10 c: pass 2 (its own sphere)", p2.sphere, p2.factors))):
         plot_hammer(sphere, np.log10(c), ax=fig.add_subplot(1, 5, j + 1, projection="hammer"), title=title)
-    for j, (title, m) in enumerate(((f"{name} (target)", mesh), ("embedded pass 1", p1.embedding.mesh),
-                                    ("embedded pass 2 (recursive)", p2.embedding.mesh))):
-        render_mesh(m, ax=fig.add_subplot(1, 5, j + 3, projection="3d"), up="y", view=(15.0, 30.0), title=title)
+    _render_row(fig, ((f"{name} (target)", mesh), ("embedded pass 1", p1.embedding.mesh),
+                      ("embedded pass 2 (recursive)", p2.embedding.mesh)))
     files.append("figure2_recursive.png")
     save_figure(fig, out / files[-1])
+    return files
 
+
+def _summary(cfg: dict, state: dict) -> tuple[str, dict]:
+    """The Finding's text and its key numbers (every row, padded to one table of equal keys)."""
+    rows = state["rows"]
     fits = [r for r in rows if r["case"] == "(a) own cMCF sphere"]
     b = next(r for r in rows if r["case"].startswith("(b)"))
     a = next(r for r in rows if r["case"].startswith("(a) adaptive"))
@@ -200,8 +252,7 @@ def run(cfg: dict, out, progress: bool) -> Finding:
         f"Recursive fit (R = {cfg['recursive_reg']:g}): Hausdorff "
         + " -> ".join(f"{r['embedded_hausdorff']:.3f}" for r in recs) + ".")
     keys = list(dict.fromkeys(key for r in rows for key in r))
-    rows = [{key: r.get(key, float("nan")) for key in keys} for r in rows]  # one table: equal keys
-    return Finding(summary, {"pl_bunny": rows}, files, {"runs": rows})
+    return summary, {"runs": [{key: r.get(key, float("nan")) for key in keys} for r in rows]}
 
 
 register(Experiment(
