@@ -345,10 +345,7 @@ def isospectral_point(model: SpectralModel, params, direction, numeig: int, *, t
     max_iter = check_int(max_iter, "max_iter", minimum=1)
     step = finite_array(direction, "direction", p.shape)
     par = Parametrization.at(p, model.free_parameters(False), model.transform)
-    fixed = np.ones(p.size, dtype=bool)
-    fixed[par.free] = False
-    if np.any(step[fixed] != 0):
-        raise InvalidArgumentError(f"direction moves {int(np.count_nonzero(step[fixed]))} parameters the gauge fixes")
+    _check_gauge(step, par)
     lam_star = spec.eigenvalues[1:]
 
     def residuals(x):
@@ -362,22 +359,40 @@ def isospectral_point(model: SpectralModel, params, direction, numeig: int, *, t
     while np.max(np.abs(r)) > tol and iteration < max_iter:
         iteration += 1
         jac = par.pullback(x, model.jacobian(spec)[1:] / lam_star[:, None])
-        u_svd, s, vt = np.linalg.svd(jac, full_matrices=False)
-        rank = int(np.sum(s > rank_tol * s[0]))
-        delta = -vt[:rank].T @ ((u_svd[:, :rank].T @ r) / s[:rank])
-        # far from the set the sorted eigenvalues cross and a full step can overshoot: halve until it helps
-        for _ in range(_HALVINGS):
-            try:
-                trial = residuals(x + delta)
-            except NotPositiveError:
-                trial = None
-            if trial is not None and np.max(np.abs(trial[1])) < np.max(np.abs(r)):
-                break
-            delta = delta / 2
-        else:
+        taken = _halved_step(residuals, x, _min_norm_step(jac, r, rank_tol), r)
+        if taken is None:
             break
-        x = x + delta
-        spec, r = trial
+        x, (spec, r) = taken
     residual = float(np.max(np.abs(r)))
     return IsospectralPoint(params=par.params(x), relative_residual=residual, iterations=iteration,
                             converged=residual <= tol)
+
+
+def _check_gauge(step, par) -> None:
+    """Refuse a step that moves a parameter the gauge fixes."""
+    fixed = np.ones(step.size, dtype=bool)
+    fixed[par.free] = False
+    if np.any(step[fixed] != 0):
+        raise InvalidArgumentError(f"direction moves {int(np.count_nonzero(step[fixed]))} parameters the gauge fixes")
+
+
+def _min_norm_step(jac, r, rank_tol: float) -> np.ndarray:
+    """The minimum-norm Gauss–Newton correction −J⁺ r, J⁺ truncated at ``rank_tol``·s₁."""
+    u_svd, s, vt = np.linalg.svd(jac, full_matrices=False)
+    rank = int(np.sum(s > rank_tol * s[0]))
+    return -vt[:rank].T @ ((u_svd[:, :rank].T @ r) / s[:rank])
+
+
+def _halved_step(residuals, x, delta, r):
+    """``(x + δ, residuals there)`` for the first δ of delta, delta/2, … that lowers the largest residual; None if
+    none of :data:`_HALVINGS` does."""
+    # far from the set the sorted eigenvalues cross and a full step can overshoot: halve until it helps
+    for _ in range(_HALVINGS):
+        try:
+            trial = residuals(x + delta)
+        except NotPositiveError:
+            trial = None
+        if trial is not None and np.max(np.abs(trial[1])) < np.max(np.abs(r)):
+            return x + delta, trial
+        delta = delta / 2
+    return None
