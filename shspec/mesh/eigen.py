@@ -223,92 +223,37 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
         # λ_1100 = 652 of a 2562-vertex mesh), and the pairs around σ cover [0, λ_k] only with many more than k.
         lam, V = sla.eigh(L.toarray(), M.toarray())
         return _select(lam, V, k, opt.multiplet_rtol, whole_multiplets)
+    return _lanczos(L, M, k, opt, whole_multiplets)
+
+
+def _lanczos(L, M, k: int, opt: EigenOptions, whole: bool) -> Spectrum:
+    """The first k pairs by shift-invert block Lanczos, the basis grown until they and the next one have converged."""
+    n = L.shape[0]
     area = float(M.sum())
     sigma = opt.sigma if opt.sigma is not None else 0.45 * 4 * np.pi * k / area
     b = int(opt.block_size)
     max_dim = min(n, opt.max_dim or 4 * k + 50 * b)
-    diag = M.diagonal() if M.nnz == np.count_nonzero(M.diagonal()) else None
-
-    def mmul(X):
-        return diag[:, None] * X if diag is not None else M @ X
-
     expected, memory, seconds = lanczos_estimate(n, k, max_dim + 2 * b)
     if shown(n):
         announce(f"cotan eigenpairs of a {n}-vertex mesh: K = {k}, a Krylov basis of about {expected} vectors "
                  f"({human_bytes(memory)} allocated), roughly {seconds:.0f} s on one core", memory)
-    try:
-        lu = splu(sp.csc_matrix(L - sigma * M))
-    except RuntimeError:
-        # σ hit an eigenvalue to rounding (SuperLU: "factor is exactly singular"); any nearby σ does as well.
-        sigma *= 1.0 + 1e-3
-        lu = splu(sp.csc_matrix(L - sigma * M))
-    rng = np.random.default_rng(opt.seed)
-    # Room for one block past max_dim, plus b random vectors injected to test a large multiplet (below).
-    Q = np.empty((n, max_dim + 2 * b))
-    T = np.zeros((max_dim + 2 * b, max_dim + 2 * b))
-    X = rng.standard_normal((n, b))
-    X[:, 0] = 1.0  # the constants span the λ₀ = 0 eigenspace of a closed surface: give it to Lanczos for free
-    X = lu.solve(mmul(X))
-    first = _orthonormal_block(Q[:, :0], X, mmul, rng, scale=1.0)[0]
-    prev, m, m_next = 0, 0, first.shape[1]
-    Q[:, :m_next] = first
+    lu, sigma = _shift_factor(L, M, sigma)
+    krylov = _Krylov(lu, _mass_product(M), n, b, max_dim, np.random.default_rng(opt.seed))
     # The basis needed was 2.4k + 60 to 3.3k on icospheres and blob (k = 10..200); Ritz checks cost an m-by-m
     # eigendecomposition each, so they start just below that, at 2.2k + 40, and are spaced by 15 % growth.
     next_check = int(2.2 * k) + 40
     nconv, reach = 0, 0.0
-    inject = False
     verified_count = -1
     with bar(n, expected, "eigenpairs (Krylov basis)", "vectors") as shown_bar:
         while True:
-            if m_next + b > max_dim:
-                raise ConvergenceError(_not_converged(nconv, reach, sigma, k, m))
-            # Q[:, m:m_next] is the newest block: apply OP and orthogonalize, first against the previous two blocks
-            # (the block three-term recurrence, which removes almost everything), then once against the whole basis
-            # (full re-orthogonalization, which removes the rounding errors that make plain Lanczos lose
-            # orthogonality).  The coefficients of both passes form the column of T.
-            block = Q[:, m:m_next]
-            W = lu.solve(mmul(block))
-            local = Q[:, prev:m_next]
-            C = np.zeros((m_next, m_next - m))
-            C[prev:] = local.T @ mmul(W)
-            W -= local @ C[prev:]
-            basis = Q[:, :m_next]
-            before = np.sqrt(np.einsum("ij,ij->j", W, mmul(W)))
-            C2 = basis.T @ mmul(W)
-            W -= basis @ C2
-            after = np.sqrt(np.einsum("ij,ij->j", W, mmul(W)))
-            if np.any(after < 0.5 * before):
-                # Heavy cancellation: what is left may still lean on the basis; "twice is enough" (Kahan, Parlett).
-                C3 = basis.T @ mmul(W)
-                W -= basis @ C3
-                C2 += C3
-            width = W.shape[1]
-            if inject:
-                # Fresh random directions, orthogonal to the basis, enter with this block (their row of T is zero).
-                extra = rng.standard_normal((n, b))
-                for _ in range(2):
-                    extra -= basis @ (basis.T @ mmul(extra))
-                W = np.hstack([W, extra])
-                inject = False
-            new, coef = _orthonormal_block(basis, W, mmul, rng, scale=before.max())
-            coef = coef[:, :width]
-            nb = new.shape[1]
-            T[:m_next, m:m_next] = C + C2
-            T[m_next:m_next + nb, m:m_next] = coef
-            Q[:, m_next:m_next + nb] = new
-            prev, m, m_next = m, m_next, m_next + nb
-            shown_bar.update(nb)
-            if m < next_check and m_next + b <= max_dim:  # the last basis before max_dim is always checked
+            if krylov.m_next + b > max_dim:
+                raise ConvergenceError(_not_converged(nconv, reach, sigma, k, krylov.m))
+            shown_bar.update(krylov.extend())
+            m = krylov.m
+            if m < next_check and krylov.m_next + b <= max_dim:  # the last basis before max_dim is always checked
                 continue
             next_check = int(1.15 * m)
-            # Ritz pairs of OP on span Q[:, :m]; residual norms from the coupling block T[m:, :m].
-            Tm = 0.5 * (T[:m, :m] + T[:m, :m].T)
-            mu, S = sla.eigh(Tm)
-            order = np.argsort(-np.abs(mu))
-            mu, S = mu[order], S[:, order]
-            res = np.linalg.norm(T[m:m_next, :m] @ S, axis=0)
-            ok = res <= opt.tol * np.abs(mu)
-            nconv = int(np.argmin(ok)) if not ok.all() else ok.size
+            mu, S, nconv = krylov.ritz(opt.tol)
             if nconv == 0:
                 continue
             # The converged pairs are the eigenvalues within D = 1/|μ| of σ; when D ≥ σ they are all of [0, σ + D].
@@ -323,9 +268,105 @@ def eigenpairs(L, M, k: int, options: EigenOptions | None = None, *, whole_multi
                 # A group of b or more equal eigenvalues may have more members than a block of b vectors has found
                 # so far: add b random vectors and accept only when the count below the cut stays the same.
                 if _largest_group(lam[ascending][:end + 1], opt.multiplet_rtol) >= b and end != verified_count:
-                    verified_count, inject = end, True
+                    verified_count, krylov.inject = end, True
                     continue
-                return _finish(L, M, Q[:, :m] @ S[:, ascending], k, opt.multiplet_rtol, whole_multiplets)
+                return _finish(L, M, krylov.Q[:, :m] @ S[:, ascending], k, opt.multiplet_rtol, whole)
+
+
+def _mass_product(M):
+    """X ↦ M X, by the diagonal alone when M is diagonal."""
+    diag = M.diagonal() if M.nnz == np.count_nonzero(M.diagonal()) else None
+
+    def mmul(X):
+        return diag[:, None] * X if diag is not None else M @ X
+
+    return mmul
+
+
+def _shift_factor(L, M, sigma: float) -> tuple:
+    """The sparse LU factors of L − σM and the σ they are of."""
+    try:
+        return splu(sp.csc_matrix(L - sigma * M)), sigma
+    except RuntimeError:
+        # σ hit an eigenvalue to rounding (SuperLU: "factor is exactly singular"); any nearby σ does as well.
+        sigma *= 1.0 + 1e-3
+        return splu(sp.csc_matrix(L - sigma * M)), sigma
+
+
+class _Krylov:
+    """The M-orthonormal block Krylov basis Q[:, :m_next] of OP = (L − σM)⁻¹M, grown a block at a time with full
+    re-orthogonalization, and T, the matrix of OP on it."""
+
+    def __init__(self, lu, mmul, n: int, b: int, max_dim: int, rng):
+        self.lu, self.mmul, self.rng, self.b = lu, mmul, rng, b
+        # Room for one block past max_dim, plus b random vectors injected to test a large multiplet (see extend).
+        self.Q = np.empty((n, max_dim + 2 * b))
+        self.T = np.zeros((max_dim + 2 * b, max_dim + 2 * b))
+        X = rng.standard_normal((n, b))
+        X[:, 0] = 1.0  # the constants span the λ₀ = 0 eigenspace of a closed surface: give it to Lanczos for free
+        X = lu.solve(mmul(X))
+        first = _orthonormal_block(self.Q[:, :0], X, mmul, rng, scale=1.0)[0]
+        self.prev, self.m, self.m_next = 0, 0, first.shape[1]
+        self.Q[:, :self.m_next] = first
+        #: Set to add b fresh random directions with the next block.
+        self.inject = False
+
+    def extend(self) -> int:
+        """Add the next block, OP applied to the newest one Q[:, m:m_next] and orthogonalized; returns its width."""
+        Q, mmul, prev, m, m_next = self.Q, self.mmul, self.prev, self.m, self.m_next
+        # Orthogonalize first against the previous two blocks (the block three-term recurrence, which removes almost
+        # everything), then once against the whole basis (full re-orthogonalization, which removes the rounding
+        # errors that make plain Lanczos lose orthogonality).  The coefficients of both passes form the column of T.
+        W = self.lu.solve(mmul(Q[:, m:m_next]))
+        local = Q[:, prev:m_next]
+        C = np.zeros((m_next, m_next - m))
+        C[prev:] = local.T @ mmul(W)
+        W -= local @ C[prev:]
+        basis = Q[:, :m_next]
+        W, C2, before = _reorthogonalize(basis, W, mmul)
+        width = W.shape[1]
+        if self.inject:
+            # Fresh random directions, orthogonal to the basis, enter with this block (their row of T is zero).
+            extra = self.rng.standard_normal((Q.shape[0], self.b))
+            for _ in range(2):
+                extra -= basis @ (basis.T @ mmul(extra))
+            W = np.hstack([W, extra])
+            self.inject = False
+        new, coef = _orthonormal_block(basis, W, mmul, self.rng, scale=before.max())
+        coef = coef[:, :width]
+        nb = new.shape[1]
+        self.T[:m_next, m:m_next] = C + C2
+        self.T[m_next:m_next + nb, m:m_next] = coef
+        Q[:, m_next:m_next + nb] = new
+        self.prev, self.m, self.m_next = m, m_next, m_next + nb
+        return nb
+
+    def ritz(self, tol: float) -> tuple:
+        """Ritz pairs (μ, S) of OP on span Q[:, :m] by decreasing |μ|, and how many of them lead converged."""
+        m, T = self.m, self.T
+        Tm = 0.5 * (T[:m, :m] + T[:m, :m].T)
+        mu, S = sla.eigh(Tm)
+        order = np.argsort(-np.abs(mu))
+        mu, S = mu[order], S[:, order]
+        # residual norms from the coupling block T[m:, :m]
+        res = np.linalg.norm(T[m:self.m_next, :m] @ S, axis=0)
+        ok = res <= tol * np.abs(mu)
+        return mu, S, int(np.argmin(ok)) if not ok.all() else ok.size
+
+
+def _reorthogonalize(basis, W, mmul) -> tuple:
+    """W orthogonalized against ``basis`` (twice if the first pass cancels heavily), the coefficients removed, and
+    the M-norms of W's columns before."""
+    before = np.sqrt(np.einsum("ij,ij->j", W, mmul(W)))
+    C2 = basis.T @ mmul(W)
+    W -= basis @ C2
+    after = np.sqrt(np.einsum("ij,ij->j", W, mmul(W)))
+    if np.any(after < 0.5 * before):
+        # Heavy cancellation: what is left may still lean on the basis; "twice is enough" (Kahan, Parlett).
+        C3 = basis.T @ mmul(W)
+        W -= basis @ C3
+        C2 += C3
+    return W, C2, before
 
 
 def _not_converged(nconv: int, reach: float, sigma: float, k: int, m: int) -> str:
