@@ -17,22 +17,17 @@ from ..fitting.adaptive import AdaptiveOptions
 from ..fitting.plan import MESH_REG
 from ..fitting.request import MODEL_KINDS
 from ..fitting.targets import TARGET_SOURCES
-from ..inverse.checkpoint import claim_checkpoint
 from ..inverse.multistart import fit
 from ..inverse.options import AREA_MODES, OPTIMIZERS, WEIGHTINGS, FitOptions
-from ..inverse.output import alignment_record, rho_error, success_definition, surface_record, write_result
+from ..inverse.output import (alignment_record, claim_output, rho_error, success_definition, surface_record,
+                              write_result)
 from ..mesh.model import REGULARIZER_KINDS
 from ._common import whole_number
 from .help_format import HelpFormatter
 
 
 def _numeig(text: str):
-    if text in ("auto", "all"):
-        return text
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--numeig is an integer, 'auto' or 'all', got {text!r}") from None
+    return text if text in ("auto", "all") else whole_number(2, "K counts lambda_0 = 0 too")(text)
 
 
 def _degree(text: str):
@@ -52,7 +47,7 @@ def _optional_tol(text: str):
 
 
 def _directory(text: str) -> Path:
-    if not text.strip():
+    if not text.strip():  # Path("") is the current folder
         raise argparse.ArgumentTypeError("the output directory is empty; name one")
     return Path(text)
 
@@ -168,13 +163,15 @@ def _fit(args) -> int:
     out: Path = args.out
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out} is a file; give a directory")
-    claim_checkpoint(out / "checkpoint.h5", resume=args.resume, overwrite=args.overwrite)
-    plan = prepare_fit(_request(args))
-    if plan.workers not in (None, 1) and plan.options.checkpoint_every and not args.quiet:
-        print(f"note: on {plan.workers} workers the checkpoint holds the finished starts only (--checkpoint-every "
-              "checkpoints inside a start with --workers 1)", file=sys.stderr)
-    result = fit(plan, resume=args.resume)
-    write_result(result, out)
+    request = _request(args)  # a mistyped target or option is named before the folder is touched
+    # held from before the plan to the last file: a second fit into the folder is refused at once
+    with claim_output(out, resume=args.resume, overwrite=args.overwrite):
+        plan = prepare_fit(request)
+        if plan.workers not in (None, 1) and plan.options.checkpoint_every and not args.quiet:
+            print(f"note: on {plan.workers} workers the checkpoint holds the finished starts only (--checkpoint-every "
+                  "checkpoints inside a start with --workers 1)", file=sys.stderr)
+        result = fit(plan, resume=args.resume)
+        write_result(result, out)
     _report(result, out)
     return 130 if result.interrupted else 0
 

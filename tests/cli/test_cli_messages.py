@@ -127,7 +127,7 @@ def test_a_mistyped_target_is_named_before_any_planning(tmp_path, capsys, monkey
 
     monkeypatch.setattr(fit_plan, "plan_fit", no_planning)
     for target, words in (("blobb", "unknown target 'blobb'"), ("mesh:nonexistent_mesh", "no such file"),
-                          ("spectrum:" + str(tmp_path / "none.txt"), "no such file")):
+                          ("spectrum:" + str(tmp_path / "none.txt"), "no such spectrum file")):
         assert main(["fit", "--target", target, "--out", str(tmp_path / "out")]) == 1
         assert words in capsys.readouterr().err
 

@@ -44,7 +44,7 @@ def test_a_result_file_over_the_size_limit_is_one_output_error_not_a_crash(previ
     assert done.returncode == 1, done.stderr  # was 139, a segmentation fault inside HDF5
     assert "Exception ignored" not in done.stderr and "Traceback" not in done.stderr
     assert "cannot write" in done.stderr and "result.h5" in done.stderr and "ulimit -f" in done.stderr
-    assert _files(out) == {}  # no result.h5.*.tmp
+    assert set(_files(out)) <= {".shspec-fit.lock"}  # no result.h5.*.tmp: only the (released) lock of the fit
 
 
 def test_a_fit_over_the_size_limit_leaves_the_previous_fits_folder_as_it_was(previous, tmp_path):

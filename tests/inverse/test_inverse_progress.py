@@ -62,4 +62,7 @@ def test_a_fit_reports_its_stages_and_starts_through_the_display(capsys):
     assert err.count("stage 0 (degree 2, 20 eigenvalues") == 2 and err.count("stage 1 (degree 6") == 2
     assert "start 0 done" in err and "(2/2, " in err
     fit(target, HarmonicModel(8, 6), FitOptions(starts=1, max_iter=3, basin_hops=0, schedule=(Stage(6),)))
+    assert "start 0 done" in capsys.readouterr().err  # shown by default, in Python too
+    fit(target, HarmonicModel(8, 6), FitOptions(starts=1, max_iter=3, basin_hops=0, schedule=(Stage(6),),
+                                                progress=False))
     assert capsys.readouterr().err == ""
