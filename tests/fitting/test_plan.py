@@ -183,3 +183,26 @@ def test_lmax_factor_auto_takes_the_degree_the_given_spectrum_supports(tmp_path)
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["plan"]["lmax_factor"]["value"] == 3
     with pytest.raises(InvalidArgumentError, match="picks the degree a given spectrum supports"):
         prepare_fit("blob", lmax_factor="auto", progress=False)
+
+
+@pytest.mark.slow
+def test_a_second_fit_into_a_running_fits_folder_is_refused_at_once(tmp_path, capsys):
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "fit"
+    slow = ["fit", "--target", "blob", "--lmax", "12", "--lmax-factor", "6", "--numeig", "40", "--starts", "1",
+            "--max-iter", "200", "--quiet", "--out", str(out)]
+    first = subprocess.Popen([sys.executable, "-m", "shspec", *slow], stderr=subprocess.PIPE, text=True)
+    try:
+        for _ in range(600):  # its lock, taken once its arguments are checked
+            if (out / ".shspec-fit.owner").exists() or first.poll() is not None:
+                break
+            time.sleep(0.1)
+        assert first.poll() is None, first.stderr.read()
+        assert main(slow) == 1
+        assert "another fit is writing into" in capsys.readouterr().err
+    finally:
+        first.terminate()
+        first.wait()
