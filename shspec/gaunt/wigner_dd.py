@@ -106,16 +106,38 @@ def family_into_dd(j2, j3, m2, m3, hi, lo):
     m1 = -(m2 + m3)
     n = jmax - jmin + 1
     if n == 1:
-        sh, sl = _dd_sqrt(2.0 * jmin + 1.0, 0.0)
-        rh, rl = _dd_div(1.0, 0.0, sh, sl)
-        if (j2 - j3 - m1) % 2 != 0:
-            rh, rl = -rh, -rl
-        hi[0] = rh
-        lo[0] = rl
-        return jmin, 1
+        return _single_dd(jmin, j2, j3, m1, hi, lo)
+    bh, bl, cuh, cul, cdh, cdl = _coefficients_dd(n, jmin, j2, j3, m1, m2, m3)
+    kh = np.empty(n)
+    kl = np.empty(n)
+    pb = _backward_sweep(kh, kl, jmin, bh, bl, cuh, cul, cdh, cdl)
+    if jmin == 0:
+        # j2 = j3 and m1 = 0: no lower forbidden region, the backward sweep ran to the end
+        for t in range(n):
+            hi[t] = kh[t]
+            lo[t] = kl[t]
+        return _normalize_dd(hi, lo, n, jmin, j2, j3, m1, 1.0)
+    mid = _meet(hi, lo, kh, kl, pb, bh, bl, cuh, cul, cdh, cdl)
+    sh, sl = _match_dd(hi, lo, kh, kl, mid)
+    return _normalize_dd(hi, lo, n, jmin, j2, j3, m1, sh)
 
-    # coefficient tables, index t <-> j1 = jmin + t:  the recursion reads
-    #   cd[t] w[t+1] + b[t] w[t] + cu[t] w[t-1] = 0,  cd[t] = j1 A(j1+1),  cu[t] = (j1+1) A(j1)
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _single_dd(jmin, j2, j3, m1, hi, lo):
+    """The one-symbol family: ±1/sqrt(2 jmin + 1) into hi[0] + lo[0]; returns (jmin, 1)."""
+    sh, sl = _dd_sqrt(2.0 * jmin + 1.0, 0.0)
+    rh, rl = _dd_div(1.0, 0.0, sh, sl)
+    if (j2 - j3 - m1) % 2 != 0:
+        rh, rl = -rh, -rl
+    hi[0] = rh
+    lo[0] = rl
+    return jmin, 1
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _coefficients_dd(n, jmin, j2, j3, m1, m2, m3):
+    """The recursion's coefficient tables (b, cu, cd), each as leading and trailing parts, index t <-> j1 = jmin + t."""
+    # the recursion reads  cd[t] w[t+1] + b[t] w[t] + cu[t] w[t-1] = 0,  cd[t] = j1 A(j1+1),  cu[t] = (j1+1) A(j1)
     bh = np.empty(n)
     bl = np.empty(n)
     cuh = np.empty(n)
@@ -130,10 +152,14 @@ def family_into_dd(j2, j3, m2, m3, hi, lo):
         cuh[t], cul[t] = _dd_mul_d(a0h, a0l, float(j + 1))
         cdh[t], cdl[t] = _dd_mul_d(a1h, a1l, float(j))
         a0h, a0l = a1h, a1l
+    return bh, bl, cuh, cul, cdh, cdl
 
-    kh = np.empty(n)
-    kl = np.empty(n)
-    # backward sweep from jmax through the upper forbidden region (two-term start: A(jmax + 1) = 0)
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _backward_sweep(kh, kl, jmin, bh, bl, cuh, cul, cdh, cdl):
+    """Sweep down from jmax through the upper forbidden region into kh + kl; returns the index it stopped at."""
+    n = kh.size
+    # two-term start: A(jmax + 1) = 0
     kh[n - 1] = 1.0
     kl[n - 1] = 0.0
     kh[n - 2], kl[n - 2] = _dd_div(-bh[n - 1], -bl[n - 1], cuh[n - 1], cul[n - 1])
@@ -141,14 +167,13 @@ def family_into_dd(j2, j3, m2, m3, hi, lo):
     while pb > 0 and (jmin == 0 or abs(kh[pb]) > abs(kh[pb + 1])):
         _dd_step_down(kh, kl, pb, bh, bl, cuh, cul, cdh, cdl)
         pb -= 1
-    if jmin == 0:
-        # j2 = j3 and m1 = 0: no lower forbidden region, the backward sweep ran to the end
-        for t in range(n):
-            hi[t] = kh[t]
-            lo[t] = kl[t]
-        return _normalize_dd(hi, lo, n, jmin, j2, j3, m1, 1.0)
+    return pb
 
-    # forward sweep from jmin through the lower forbidden region (two-term start: A(jmin) = 0)
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _meet(hi, lo, kh, kl, pb, bh, bl, cuh, cul, cdh, cdl):
+    """Sweep up from jmin through the lower forbidden region, carry both sweeps to a meeting point; returns it."""
+    # two-term start: A(jmin) = 0
     hi[0] = 1.0
     lo[0] = 0.0
     hi[1], lo[1] = _dd_div(-bh[0], -bl[0], cdh[0], cdl[0])
@@ -163,6 +188,13 @@ def family_into_dd(j2, j3, m2, m3, hi, lo):
     while pb > mid:
         _dd_step_down(kh, kl, pb, bh, bl, cuh, cul, cdh, cdl)
         pb -= 1
+    return mid
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _match_dd(hi, lo, kh, kl, mid):
+    """Join the backward sweep to the forward one at mid, mid + 1 (hi + lo from mid on); returns its scale."""
+    n = kh.size
     # bring both sweeps to O(1) at the meeting points by exact powers of two, so that the products below cannot
     # overflow (Veltkamp splitting overflows above ~2**996), then least-squares match on the two points
     ef = math.frexp(max(abs(hi[mid]), abs(hi[mid + 1])))[1]
@@ -184,7 +216,7 @@ def family_into_dd(j2, j3, m2, m3, hi, lo):
     sh, sl = _dd_div(nh, nl, dh, dl)
     for t in range(mid, n):
         hi[t], lo[t] = _dd_mul(kh[t], kl[t], sh, sl)
-    return _normalize_dd(hi, lo, n, jmin, j2, j3, m1, sh)
+    return sh, sl
 
 
 @nb.njit(cache=True, nogil=True)
