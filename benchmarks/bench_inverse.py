@@ -33,7 +33,7 @@ import numpy as np  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 from shspec import HarmonicModel, __version__  # noqa: E402
-from shspec.parallel import make_executor, stop_executor  # noqa: E402
+from shspec.core.parallel import make_executor, stop_executor  # noqa: E402
 from shspec.inverse import FitOptions, align, fit, # noqa: E402                             degree_ramp, numeig_ramp
 from shspec.fitting import blob_factor, harmonic_target, mesh_target
 from shspec.sphere.random import random_centred_coefficients  # noqa: E402

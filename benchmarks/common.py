@@ -25,7 +25,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from shspec.resources import load_average  # noqa: F401  (the benchmarks record it beside their timings)
+from shspec.core.resources import load_average  # noqa: F401  (the benchmarks record it beside their timings)
 
 try:
     import psutil

@@ -225,7 +225,7 @@ class SchedulerError(ShspecError, OSError):
     Examples
     --------
     >>> from shspec import SchedulerError
-    >>> from shspec.parallel import make_executor
+    >>> from shspec.core.parallel import make_executor
     >>> try:
     ...     make_executor(scheduler="nonsense://host:1")
     ... except SchedulerError as exc:
@@ -308,7 +308,7 @@ _PACKAGE = str(Path(__file__).resolve().parent / "_")[:-1]  # with the separator
 
 def warn(message: str, category: type[Warning] = ShspecWarning) -> None:
     """Issue a warning attributed to the first frame outside shspec (the user's call), however deep in shspec its
-    cause lies: a fixed ``stacklevel`` pointed at the wrapper of :func:`~shspec.threads.reproducible_call`
+    cause lies: a fixed ``stacklevel`` pointed at the wrapper of :func:`~shspec.core.threads.reproducible_call`
     ("threads.py:150") or at another of shspec's own lines.  In a thread that runs shspec's code from its start, the
     thread's own frames outside shspec.  (Python 3.12's ``skip_file_prefixes`` does the same; shspec supports 3.11.)
     """

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import check_float, real_array
+from .core.checks import check_float, real_array
 from .errors import InvalidArgumentError
 
 __all__ = ["Spectrum", "SpectralModel", "TRANSFORMS", "regularization_weight"]

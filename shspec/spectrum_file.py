@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_output, write_text
+from .core.atomic import atomic_output, write_text
 from .errors import InvalidArgumentError
 
 __all__ = ["SpectrumFile", "check_spectrum_path", "read_spectrum_file", "read_spectrum", "write_spectrum",

@@ -7,7 +7,7 @@ import h5py
 import numpy as np
 import pytest
 
-from shspec.atomic import atomic_hdf5, atomic_path, temporary_files, umask_mode
+from shspec.core.atomic import atomic_hdf5, atomic_path, temporary_files, umask_mode
 
 
 def _write(path, value):

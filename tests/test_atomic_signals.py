@@ -8,7 +8,7 @@ import weakref
 
 import pytest
 
-from shspec import atomic
+from shspec.core import atomic
 from shspec.cli import main
 from shspec.gaunt import build_table, save_table
 

@@ -1,11 +1,11 @@
-"""The shared argument checks (shspec.checks), and public functions that rely on them for their options."""
+"""The shared argument checks (shspec.core.checks), and public functions that rely on them for their options."""
 
 from __future__ import annotations
 
 import pytest
 
 from shspec import HarmonicModel
-from shspec.checks import check_options
+from shspec.core.checks import check_options
 from shspec.errors import InvalidArgumentError, ShspecError
 from shspec.inverse import fit
 from shspec.fitting import blob_factor, harmonic_target

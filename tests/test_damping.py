@@ -1,4 +1,4 @@
-"""Nielsen's damping update (shspec.damping), shared by every Levenberg–Marquardt loop."""
+"""Nielsen's damping update (shspec.core.damping), shared by every Levenberg–Marquardt loop."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import warnings
 
 import pytest
 
-from shspec.damping import nielsen_update
+from shspec.core.damping import nielsen_update
 from shspec.errors import InvalidArgumentError
 
 

@@ -17,9 +17,8 @@ import shspec
 #: The one declaration of the layer order, bottom first.
 LAYERS = (
     ("_version", "errors"),
-    ("checks", "atomic", "threads"),
-    ("outputs", "resources", "damping", "plotstyle", "parallel", "report"),
-    ("spectral_model", "sphere", "spectrum_file"),
+    ("core",),
+    ("report", "spectral_model", "sphere", "spectrum_file"),
     ("gaunt",),
     ("galerkin", "mesh"),
     ("embed",),
@@ -195,7 +194,14 @@ def test_the_checks_see_a_cycle_and_an_upward_import(tmp_path):
         "shspec.galerkin.planning imports shspec.inverse.identifiability (a higher layer)"]
 
 
-@pytest.mark.parametrize("module", ["shspec.inverse.options", "shspec.galerkin.solver", "shspec.resources"])
+@pytest.mark.parametrize("module", ["shspec.inverse.options", "shspec.galerkin.solver", "shspec.core.resources"])
 def test_the_old_cycles_are_gone(module):
     graph = import_graph()
     assert not any(module in c for c in cycles(graph))
+
+
+def test_the_package_root_holds_few_modules():
+    """The folders show the layers: plumbing lives in ``shspec/core``, each domain in its package; at the root only
+    the public API (``__init__``, ``__main__``, ``_version``) and at most six modules every layer shares."""
+    root = sorted(p.stem for p in ROOT.glob("*.py") if p.stem not in ("__init__", "__main__", "_version"))
+    assert len(root) <= 6, root

@@ -14,7 +14,7 @@ import pytest
 from shspec.cli import main
 from shspec.errors import SchedulerError, ShspecError
 from shspec.mesh import icosphere, save_mesh
-from shspec.parallel import make_executor
+from shspec.core.parallel import make_executor
 
 
 @pytest.fixture
@@ -106,7 +106,7 @@ def test_leaving_a_worker_pool_by_an_exception_does_not_wait_for_its_jobs():
 
 _KILLED_OWNER = """
 import os, signal, time
-from shspec.parallel import _pool_processes, make_executor
+from shspec.core.parallel import _pool_processes, make_executor
 pool = make_executor(workers=2)
 jobs = [pool.submit(time.sleep, 300) for _ in range(2)]
 while not all(job.running() for job in jobs):

@@ -1,4 +1,4 @@
-"""The same input gives the same bits on any number of BLAS and numba threads (shspec.threads.reproducible)."""
+"""The same input gives the same bits on any number of BLAS and numba threads (shspec.core.threads.reproducible)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from threadpoolctl import threadpool_info, threadpool_limits
 from shspec.errors import InvalidArgumentError
 from shspec.galerkin import HarmonicModel
 from shspec.sphere.random import random_centred_coefficients
-from shspec.threads import reproducible, set_reproducible
+from shspec.core.threads import reproducible, set_reproducible
 
 # large enough that OpenBLAS splits its work between two threads: before the rule, 152 of the 200 eigenvalues differed
 LB, LA, K = 24, 10, 200

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-import shspec.resources as resources
+import shspec.core.resources as resources
 from shspec.errors import ResourceLimitError
 from shspec.galerkin.model import HarmonicModel, forward_need
 from shspec.gaunt.build import build_table

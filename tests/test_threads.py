@@ -128,7 +128,7 @@ import os
 import signal
 import threading
 
-from shspec import threads
+from shspec.core import threads
 from shspec.galerkin import spectrum
 from shspec.fitting import blob_factor
 

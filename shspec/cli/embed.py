@@ -6,7 +6,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..atomic import atomic_output
+from ..core.atomic import atomic_output
 from ..embed.embed import EmbedOptions, embed
 from ..errors import InvalidArgumentError, OutputError
 from ..pipeline.validation import ValidationOptions, validate_target, write_report

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
-from ..atomic import atomic_output, save_figure, write_hdf5, write_text
+from ..core.atomic import atomic_output, save_figure, write_hdf5, write_text
 from ._common import CACHE_DIR_HELP
 from .help_format import HelpFormatter
 from ..errors import BandLimitError, InvalidArgumentError, TruncationWarning
@@ -21,7 +21,7 @@ from ..galerkin.convergence import convergence, convergence_in_factor
 from ..mesh.factor_spectrum import pl_spectrum_of_factor
 from ..galerkin.solver import MAX_BASIS_DEGREE, spectrum
 from ..gaunt.cache import list_tables
-from ..outputs import ensure_directory, write_csv
+from ..core.outputs import ensure_directory, write_csv
 from ..sphere.harmonics import check_degree
 from ._rho import RHO_HELP, parse_rho
 

@@ -7,15 +7,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_output, atomic_outputs, save_figure, write_text
+from ..core.atomic import atomic_output, atomic_outputs, save_figure, write_text
 from ..errors import InvalidArgumentError
-from ..outputs import ensure_directory
+from ..core.outputs import ensure_directory
 from ..mesh.cmcf import CMCFOptions, cmcf
 from ..mesh.cotan import MASS_KINDS
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.mesh_files import load_mesh, save_mesh
 from ..mesh.plot import plot_hammer
-from ..parallel import make_executor
+from ..core.parallel import make_executor
 from ..spectral.batch import run_batch
 from ..spectrum_file import SPECTRUM_SUFFIXES, write_spectrum
 
@@ -115,7 +115,7 @@ def _cmcf(args) -> int:
         "centering_residual": None if np.isnan(result.centering_residual) else result.centering_residual,
         "success": result.success, "stop_reason": result.stop_reason,
     }
-    # one unit: a failed write leaves the folder's previous run whole (shspec.atomic.atomic_outputs)
+    # one unit: a failed write leaves the folder's previous run whole (shspec.core.atomic.atomic_outputs)
     with atomic_outputs(ensure_directory(args.out), replaces=CMCF_OUTPUTS) as files:
         save_mesh(result.sphere, files.path("sphere.obj"))
         with atomic_output(files.path("factors.txt")) as tmp:

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from ..checks import check_int, check_options
+from ..core.checks import check_int, check_options
 from ..errors import InvalidArgumentError
 from ..mesh.cotan import cotan_stiffness, vertex_areas
 from ..mesh.triangle_mesh import TriangleMesh

@@ -20,7 +20,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from ..checks import check_int
+from ..core.checks import check_int
 from ..errors import InvalidArgumentError
 from ..mesh.triangle_mesh import TriangleMesh
 

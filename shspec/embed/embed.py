@@ -60,7 +60,7 @@ Code
 ----
 Options and result in :mod:`.options`, the sparse system and its CG solver in :mod:`.system`, the elimination
 order in :mod:`.ordering`, the Levenberg–Marquardt loop and the continuation in :mod:`.solver` (with the damping
-rule of :mod:`shspec.damping`), the coercion of the input factors in :mod:`.inputs`.
+rule of :mod:`shspec.core.damping`), the coercion of the input factors in :mod:`.inputs`.
 
 Limitations
 -----------
@@ -76,11 +76,11 @@ import time
 
 import numpy as np
 
-from ..checks import check_options
+from ..core.checks import check_options
 from ..errors import InvalidArgumentError
 from ..mesh.cotan import vertex_areas
 from ..mesh.triangle_mesh import TriangleMesh
-from ..threads import reproducible_call
+from ..core.threads import reproducible_call
 from .inputs import vertex_factors
 from .lengths import check_sphere, smooth_factors, target_edge_lengths
 from .options import EmbedOptions, EmbedResult

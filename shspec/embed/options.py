@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..checks import check_float, check_int
+from ..core.checks import check_float, check_int
 from ..errors import InvalidArgumentError
 from ..mesh.triangle_mesh import TriangleMesh
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..damping import nielsen_update
+from ..core.damping import nielsen_update
 from .continuation import continuation_schedule
 from .lengths import target_edge_lengths
 

@@ -24,9 +24,9 @@ import numpy as np
 
 from .._version import __version__
 from ..errors import InvalidArgumentError
-from ..outputs import ensure_directory, write_csv
+from ..core.outputs import ensure_directory, write_csv
 from ..report import experiment_markdown
-from ..resources import load_average
+from ..core.resources import load_average
 
 __all__ = ["Experiment", "Finding", "EXPERIMENTS", "register", "run_experiment", "load_config"]
 

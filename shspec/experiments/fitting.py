@@ -3,7 +3,7 @@
 Threads.  On a shared machine OpenBLAS's worker threads spin against other processes: a dense 162 × 162
 generalized eigenproblem measured 0.64 s with the default threads and 5 ms with one thread (load average 10 on 2
 cores).  The fits call thousands of small dense kernels, so :func:`single_threaded` keeps BLAS on one thread
-(:func:`shspec.threads.reproducible`, which also makes the results independent of the thread count).
+(:func:`shspec.core.threads.reproducible`, which also makes the results independent of the thread count).
 """
 
 from __future__ import annotations
@@ -16,11 +16,11 @@ from contextlib import contextmanager
 import numpy as np
 from tqdm import tqdm
 
-from ..atomic import write_hdf5
+from ..core.atomic import write_hdf5
 from ..inverse import align
 from ..mesh.bridge import fit_harmonic, mesh_band_limit
 from ..sphere.rotate import power_spectrum
-from ..threads import reproducible
+from ..core.threads import reproducible
 
 __all__ = ["single_threaded", "Progress", "vertex_factor_errors", "spectral_residuals", "harmonic_errors",
            "write_h5", "spearman"]
@@ -106,7 +106,7 @@ def harmonic_errors(sphere, fitted, truth, lmax_factor: int, *, aligned: bool = 
 
 def write_h5(path, groups: dict) -> None:
     """HDF5 file with one group per key, one dataset per array (scalars and strings as attributes), written
-    atomically (:func:`shspec.atomic.write_hdf5`: a full disk is one OutputError, never a crash inside HDF5)."""
+    atomically (:func:`shspec.core.atomic.write_hdf5`: a full disk is one OutputError, never a crash inside HDF5)."""
     def fill(f):
         for name, items in groups.items():
             g = f.create_group(str(name))

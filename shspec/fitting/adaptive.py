@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..checks import check_int, check_options
+from ..core.checks import check_int, check_options
 from ..errors import InvalidArgumentError
 from ..inverse.multistart import fit
 from ..inverse.options import FitOptions

@@ -17,7 +17,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ..checks import real_array
+from ..core.checks import real_array
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..galerkin.log_model import LogHarmonicModel
 from ..galerkin.model import HarmonicModel

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import check_float, check_int
+from ..core.checks import check_float, check_int
 from ..errors import InvalidArgumentError
 from ..gaunt.cache import get_table
 from ..gaunt.table import MAX_BASIS_DEGREE
@@ -41,7 +41,7 @@ from ..galerkin.model import HarmonicModel
 from ..galerkin.truncation import DEFAULT_TRUNCATION_TOL, basis_degree_for
 from ..sphere.factor import ConformalFactor
 from ..sphere.random import random_centred_coefficients
-from ..threads import reproducible_call
+from ..core.threads import reproducible_call
 from ..inverse.identifiability import identifiability_by_numeig
 from ..inverse.options import FitOptions
 

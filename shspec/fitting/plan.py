@@ -38,7 +38,7 @@ from ..mesh.model import MeshModel
 from ..mesh.progress import mesh_progress
 from ..mesh.refine import eigenvalue_errors, trusted_numeig
 from ..mesh.triangle_mesh import TriangleMesh
-from ..parallel import make_executor, stop_executor, usable_cores
+from ..core.parallel import make_executor, stop_executor, usable_cores
 from ..spectral.topology import check_genus_zero
 from ..spectrum_file import read_spectrum, read_spectrum_file
 from ..sphere.factor import ConformalFactor

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..embed.distances import surface_distance
 from ..embed.embed import EmbedOptions, EmbedResult, embed
-from ..checks import check_int, check_options
+from ..core.checks import check_int, check_options
 from ..mesh.cotan import vertex_areas
 from ..errors import InvalidArgumentError
 from ..inverse import FitOptions, Target, fit

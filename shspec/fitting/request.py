@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import check_float, check_int, check_options
+from ..core.checks import check_float, check_int, check_options
 from ..errors import InvalidArgumentError
 from ..inverse.options import FitOptions
 from ..inverse.target import Target

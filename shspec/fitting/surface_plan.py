@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import check_float
+from ..core.checks import check_float
 from ..errors import InvalidArgumentError
 from ..gaunt.table import MAX_BASIS_DEGREE
 from ..galerkin.log_model import LogHarmonicModel, log_expansion

@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.ndimage import maximum_filter1d
 
-from ..checks import check_int, real_array
+from ..core.checks import check_int, real_array
 from ..errors import InvalidArgumentError
 from ..galerkin.model import HarmonicModel
 from ..inverse.target import Target, estimate_area

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..checks import check_int
+from ..core.checks import check_int
 from ..errors import InvalidArgumentError
 from ..sphere.grid import glq_grid, legendre_at_nodes
 from ..sphere.harmonics import check_degree, ncoeffs

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..checks import finite_array
+from ..core.checks import finite_array
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
 from ..spectral_model import SpectralModel, Spectrum
@@ -40,7 +40,7 @@ from ..sphere.grid import GLQGrid, evaluate_on_grid, expand_grid, glq_grid
 from ..sphere.harmonics import check_degree, degrees, ncoeffs
 from ..sphere.random import random_coefficients
 from ..sphere.rotate import power_spectrum
-from ..threads import reproducible_call
+from ..core.threads import reproducible_call
 from .gridforms import GridQuadraticForms
 from .model import (HarmonicModel, SpectrumResult, block_moves, laplacian_regularizer, rotation_generators,
                     smallest_agreeing_basis)

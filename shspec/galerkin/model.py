@@ -16,18 +16,18 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
 
-from ..checks import check_float, check_int
+from ..core.checks import check_float, check_int
 from ..errors import BandLimitError, InvalidArgumentError, NotPositiveError
 from ..gaunt.cache import get_table
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable, plan_bytes, table_size
 from ..spectral_model import SpectralModel, Spectrum, regularization_weight
-from ..resources import Need, check_need
+from ..core.resources import Need, check_need
 from ..sphere.evaluate import weighted_expansion
 from ..sphere.factor import ConformalFactor
 from ..sphere.harmonics import check_degree, degree_order, degrees, lmax_of_size, ncoeffs
 from ..sphere.random import random_centred_coefficients, random_coefficients
 from ..sphere.rotate import power_spectrum, rotate_coefficients
-from ..threads import reproducible_call, serialized
+from ..core.threads import reproducible_call, serialized
 from .eigen import cold_eigh, guard_count, solve_cost, warm_eigh
 from .gridforms import GridQuadraticForms
 from .truncation import TruncationEstimate, basis_degree_for
@@ -118,7 +118,7 @@ class HarmonicModel(SpectralModel):
     ------
     ResourceLimitError
         The table, its plan and the two dense N × N matrices of a solve would not fit in the available memory
-        (:mod:`shspec.resources`); checked before anything is allocated or built.
+        (:mod:`shspec.core.resources`); checked before anything is allocated or built.
 
     Examples
     --------

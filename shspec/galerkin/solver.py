@@ -24,12 +24,12 @@ import dataclasses
 
 import numpy as np
 
-from ..checks import check_float, real_array
+from ..core.checks import check_float, real_array
 from ..errors import InvalidArgumentError, NotPositiveError, ShspecError, TruncationWarning, warn
 from ..gaunt.table import MAX_BASIS_DEGREE, GauntTable
 from ..sphere.factor import ConformalFactor, as_factor
 from ..sphere.harmonics import check_degree
-from ..threads import reproducible_call
+from ..core.threads import reproducible_call
 from .model import HarmonicModel, SpectrumResult
 from .truncation import DEFAULT_TRUNCATION_TOL, TruncationEstimate, basis_truncation, factor_truncation, tail_bound
 

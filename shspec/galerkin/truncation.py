@@ -39,7 +39,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..checks import check_int, finite_array, real_array
+from ..core.checks import check_int, finite_array, real_array
 from ..errors import InvalidArgumentError
 from ..sphere.grid import evaluate_on_grid, glq_grid, legendre_at_nodes
 from ..sphere.harmonics import degrees, lmax_of_size, ncoeffs

@@ -13,7 +13,7 @@ import math
 import numba as nb
 import numpy as np
 
-from ..threads import serialized
+from ..core.threads import serialized
 from .table import GauntTable, _balanced_rows, _block_families, _block_offsets, check_limits
 from .wigner import factorial_table, family_into, family_upto_into
 

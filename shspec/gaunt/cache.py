@@ -24,7 +24,7 @@ the user cache folder ``$XDG_CACHE_HOME/shspec`` (``~/.cache/shspec``).  The rul
 never on how shspec was installed, so ``python -m precompute`` and the installed ``shspec`` run from the same folder
 share one cache.
 
-Writes are atomic (:mod:`shspec.atomic`) and hold the table's lock file ``<name>.lock``; a temporary file
+Writes are atomic (:mod:`shspec.core.atomic`) and hold the table's lock file ``<name>.lock``; a temporary file
 ``<name>.<random>.tmp`` that exists while nobody holds the lock was left by a writer that was killed, and is removed
 by the next writer of that table (or :func:`remove_stale_files`).
 """
@@ -48,11 +48,11 @@ import h5py
 import numpy as np
 
 from .._version import __version__
-from ..atomic import atomic_hdf5, temporary_files, write_failure
+from ..core.atomic import atomic_hdf5, temporary_files, write_failure
 from ..errors import (BandLimitError, CacheLocationError, CorruptTableError, OutdatedTableError, TableMismatchError,
                       warn)
-from ..outputs import ensure_directory
-from ..resources import check_need
+from ..core.outputs import ensure_directory
+from ..core.resources import check_need
 from ..sphere.harmonics import degree_order
 from .build import build_table
 from .real_gaunt import real_gaunt
@@ -180,7 +180,7 @@ def save_table(table: GauntTable, directory: str | os.PathLike | None = None, *,
                ) -> Path:
     """Write ``table`` to the cache atomically, under the table's lock; returns the path.
 
-    An existing file is replaced only once the new one is complete and synced (see :mod:`shspec.atomic`).
+    An existing file is replaced only once the new one is complete and synced (see :mod:`shspec.core.atomic`).
 
     Examples
     --------

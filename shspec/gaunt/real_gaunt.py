@@ -32,7 +32,7 @@ import math
 import numba as nb
 import numpy as np
 
-from ..checks import check_int
+from ..core.checks import check_int
 from ..errors import InvalidArgumentError
 from ..sphere.harmonics import MAX_DEGREE
 from .wigner import family_into, family_range

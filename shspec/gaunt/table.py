@@ -20,10 +20,10 @@ from dataclasses import dataclass, field
 import numba as nb
 import numpy as np
 
-from ..checks import real_array
+from ..core.checks import real_array
 from ..errors import BandLimitError, InvalidArgumentError
-from ..resources import Need
-from ..threads import REDUCTION_CHUNKS, serialized
+from ..core.resources import Need
+from ..core.threads import REDUCTION_CHUNKS, serialized
 from ..sphere.harmonics import check_degree, ncoeffs
 from .real_gaunt import order_factor
 

@@ -12,7 +12,7 @@ import math
 import numba as nb
 import numpy as np
 
-from ..checks import check_int
+from ..core.checks import check_int
 from ..errors import InvalidArgumentError
 from ..sphere.harmonics import MAX_DEGREE
 from .doubledouble import (_DD_HUGE, _DD_TINY, _DD_ZERO, _dd_add, _dd_div, _dd_from_int, _dd_mul, _dd_mul_d,

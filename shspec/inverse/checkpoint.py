@@ -7,7 +7,7 @@ optimizer's state after its last completed iteration and the history), plus what
 (:data:`TARGET_RTOL`; a computed target such as the built-in blob may move by a few ulps with the machine or library
 versions, and that is not another fit) and continues the running start from that state, on the checkpoint's own
 target: the optimizers are deterministic, so the result is the one of an uninterrupted run.  Files are written
-atomically (:mod:`shspec.atomic`: a temporary file, fsynced, renamed), so a crash while writing never leaves a
+atomically (:mod:`shspec.core.atomic`: a temporary file, fsynced, renamed), so a crash while writing never leaves a
 truncated checkpoint; and every file carries a BLAKE2b checksum of all its datasets and attributes, checked on
 reading, so a damaged file is refused by name instead of silently changing a resumed fit.
 """
@@ -24,7 +24,7 @@ import numpy as np
 import scipy
 
 from .._version import __version__
-from ..atomic import write_hdf5
+from ..core.atomic import write_hdf5
 from ..errors import CheckpointError
 from ..spectral_model import SpectralModel
 from .target import Target
@@ -114,7 +114,7 @@ def _content_checksum(f: h5py.File) -> str:
 
 
 def _atomic(path: Path, write) -> None:
-    """Write an HDF5 file through ``write(f)`` atomically (:func:`shspec.atomic.write_hdf5`), with its checksum;
+    """Write an HDF5 file through ``write(f)`` atomically (:func:`shspec.core.atomic.write_hdf5`), with its checksum;
     a full disk or a read-only folder is one CheckpointError naming the file (the previous one intact)."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

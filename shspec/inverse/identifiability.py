@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ..checks import check_float, check_int, finite_array
+from ..core.checks import check_float, check_int, finite_array
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..spectral_model import SpectralModel
 from .parametrization import Parametrization

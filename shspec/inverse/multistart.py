@@ -2,7 +2,7 @@
 
 A round start never leaves the even subspace (at an even ρ the gradient along odd degrees is exactly 0,
 :doc:`/theory`), so every start is random, with odd degrees.  Starts run one after the other, or on an executor,
-with the same bits either way (:func:`shspec.threads.reproducible`); each writes checkpoints if asked, and Ctrl-C
+with the same bits either way (:func:`shspec.core.threads.reproducible`); each writes checkpoints if asked, and Ctrl-C
 ends the fit cleanly with the best state so far.  By default the fit stops at a success
 (:attr:`FitOptions.stop_at_success`): the starts race in rounds of :attr:`FitOptions.race`, and the answer is the
 success of the first round that has one that took the least work (:mod:`~shspec.inverse.race`), whatever order
@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import check_options
+from ..core.checks import check_options
 from ..errors import InvalidArgumentError
-from ..parallel import SerialExecutor, interruptible
+from ..core.parallel import SerialExecutor, interruptible
 from ..spectral_model import SpectralModel
 from .checkpoint import fingerprint, load_checkpoint, save_checkpoint
 from .driver import run_start
@@ -32,7 +32,7 @@ from .race import ABANDONED, RaceBoard, RaceBound, best_success, race_outcome, r
 from .results import FitResult, StartResult
 from .prepared import PreparedFit
 from .target import Target
-from ..threads import reproducible_call
+from ..core.threads import reproducible_call
 
 __all__ = ["fit", "distinct_solutions", "spectral_scale", "SAFE_EIGENVALUES"]
 
@@ -122,7 +122,7 @@ def _run_fresh_start(problem: FitProblem, index: int, bound: RaceBound | None) -
 @reproducible_call
 def _continue_start(problem: FitProblem, progress: StartProgress) -> StartResult:
     """A start a checkpoint left running, continued from its state (the task sent to an executor's worker).  When
-    its pool's owner interrupts it (:meth:`~shspec.parallel.WorkerPool.interrupt_workers`), the start ends at its
+    its pool's owner interrupts it (:meth:`~shspec.core.parallel.WorkerPool.interrupt_workers`), the start ends at its
     best state, with status "interrupted"."""
     try:
         with interruptible():
@@ -210,7 +210,7 @@ def _posted(board: RaceBoard, result: StartResult, waiting: set, futures: dict, 
 
 
 def _collect_interrupted(executor: Executor, running: set, finished: list, display: FitDisplay) -> None:
-    """After Ctrl-C: interrupt the workers of a :class:`~shspec.parallel.WorkerPool` and append the best states
+    """After Ctrl-C: interrupt the workers of a :class:`~shspec.core.parallel.WorkerPool` and append the best states
     their running starts send back within :data:`INTERRUPT_GRACE` seconds (as many as workers were signalled: a
     start still queued may have taken a freed worker, and is not waited for)."""
     interrupt = getattr(executor, "interrupt_workers", None)
@@ -255,8 +255,8 @@ def fit(target: Target | PreparedFit, model: SpectralModel | None = None, option
         stay random.  With ``options.schedule`` None a fit from ``init`` is one stage at full resolution.
     executor : concurrent.futures.Executor, optional
         Run the starts on it, and choose the stages' bases there first (a process pool, or a Dask cluster's
-        ``Client.get_executor()``; see :func:`shspec.parallel.make_executor`); None or a
-        :class:`~shspec.parallel.SerialExecutor`: here, one after the other.  Each start is independent and
+        ``Client.get_executor()``; see :func:`shspec.core.parallel.make_executor`); None or a
+        :class:`~shspec.core.parallel.SerialExecutor`: here, one after the other.  Each start is independent and
         seeded by its index, so the results are those of a serial run, with :attr:`~FitOptions.stop_at_success`
         too (:mod:`~shspec.inverse.race`): when a start of race round r succeeds, the other starts of round r go
         on only while they have done less work, the pending starts of later rounds are cancelled, and the fit
@@ -264,13 +264,13 @@ def fit(target: Target | PreparedFit, model: SpectralModel | None = None, option
         starts that ended anyway but lost the race are left out of the result.  A start of a later round already
         running in a process pool cannot be cancelled: the fit returns without its result, and it ends in its
         worker at its next look at the race (within :data:`~shspec.inverse.race.POLL_SECONDS` and one iteration);
-        :func:`shspec.parallel.stop_executor` ends it at once (``shspec fit`` does).  On Ctrl-C the running starts
-        of a :class:`~shspec.parallel.WorkerPool` (``make_executor(workers=N)``) are interrupted and their best
+        :func:`shspec.core.parallel.stop_executor` ends it at once (``shspec fit`` does).  On Ctrl-C the running starts
+        of a :class:`~shspec.core.parallel.WorkerPool` (``make_executor(workers=N)``) are interrupted and their best
         states, status "interrupted", are part of the result (waited for up to :data:`INTERRUPT_GRACE` seconds).
         Finished starts are checkpointed as they arrive; a start still running when the fit stops is run again
         from its beginning on resume (or from the state a serial run's checkpoint holds), as the checkpoints are
         written between starts only.  Run at most one start per process at a time (processes, or Dask workers
-        with one thread each): threads are safe (:mod:`shspec.threads`), but they take turns in pyshtools' grid
+        with one thread each): threads are safe (:mod:`shspec.core.threads`), but they take turns in pyshtools' grid
         routines and numba's parallel kernels.
 
     Returns

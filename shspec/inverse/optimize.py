@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from ..damping import nielsen_update
+from ..core.damping import nielsen_update
 from ..errors import InvalidArgumentError, NotPositiveError
 from .energy import Evaluation, Objective
 from .options import FitOptions

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..checks import check_choice, check_float, check_int
+from ..core.checks import check_choice, check_float, check_int
 from ..errors import InvalidArgumentError
 from .schedule import Stage
 

@@ -21,9 +21,9 @@ from pathlib import Path
 import filelock
 import numpy as np
 
-from ..atomic import atomic_outputs, save_figure, write_text
+from ..core.atomic import atomic_outputs, save_figure, write_text
 from ..errors import InvalidArgumentError, NotPositiveError, OutputError
-from ..outputs import ensure_directory
+from ..core.outputs import ensure_directory
 from ..sphere.evaluate import sample_harmonic
 from . import plots
 from .checkpoint import claim_checkpoint, options_dict, save_result
@@ -211,7 +211,7 @@ def claim_output(directory, *, resume: bool = False, overwrite: bool = False):
 
 
 #: What a fit writes into its folder but the model's own files: what a fit replaces there even when the folder's
-#: list of the previous fit's outputs (:data:`shspec.atomic.MANIFEST`) is missing.
+#: list of the previous fit's outputs (:data:`shspec.core.atomic.MANIFEST`) is missing.
 FIT_OUTPUTS = ("result.h5", "summary.json", "history.png", "residuals.png", "factors.png")
 
 
@@ -220,7 +220,7 @@ def write_result(result: FitResult, directory, *, figures: bool = True) -> Path:
     (:meth:`~shspec.spectral_model.SpectralModel.write_files`: factors.txt and sphere.obj of a mesh fit) and, if ``figures``,
     history.png, residuals.png, factors.png and the model's own figures into ``directory`` (created).
 
-    The files are one unit (:func:`shspec.atomic.atomic_outputs`): they replace every output of the fit written
+    The files are one unit (:func:`shspec.core.atomic.atomic_outputs`): they replace every output of the fit written
     there before, those this one does not write (a figure it skips) included, or, when one cannot be written, none
     does; a checkpoint in the folder is left alone.
 

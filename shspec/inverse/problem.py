@@ -16,9 +16,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..checks import finite_array
+from ..core.checks import finite_array
 from ..errors import InvalidArgumentError, NotPositiveError
-from ..parallel import usable_cores
+from ..core.parallel import usable_cores
 from ..spectral_model import SpectralModel
 from .target import Target
 from .energy import Objective, eigenvalue_weights

@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from ..checks import check_int
+from ..core.checks import check_int
 from ..errors import InvalidArgumentError
 
 __all__ = ["ABANDONED", "POLL_SECONDS", "RaceLost", "RaceBound", "RaceBoard", "race_round", "won_round",

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import check_int
+from ..core.checks import check_int
 from ..errors import InvalidArgumentError
 from ..spectral_model import SpectralModel
 

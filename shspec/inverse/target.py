@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import check_float, check_int, real_array
+from ..core.checks import check_float, check_int, real_array
 from ..errors import InvalidArgumentError
 from ..sphere.factor import ConformalFactor
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import check_int
+from ..core.checks import check_int
 from ..errors import InvalidArgumentError, MeshError
 from ..sphere.evaluate import harmonic_matrix, weighted_expansion, weighted_misfit
 from ..sphere.harmonics import check_degree

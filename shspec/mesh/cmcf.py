@@ -23,9 +23,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ..checks import check_float, check_int, check_options
+from ..core.checks import check_float, check_int, check_options
 from ..errors import InvalidArgumentError, MeshError
-from ..threads import reproducible_call
+from ..core.threads import reproducible_call
 from .cotan import cotan_stiffness, vertex_areas
 from .mobius import center_mesh
 from .progress import announce, bar, shown

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..checks import check_choice
+from ..core.checks import check_choice
 from ..errors import InvalidArgumentError
 from .triangle_mesh import TriangleMesh
 

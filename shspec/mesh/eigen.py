@@ -40,11 +40,11 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ..checks import check_int, check_options
+from ..core.checks import check_int, check_options
 from ..errors import ConvergenceError, InvalidArgumentError, MeshError, warn
 from ..spectral_model import Spectrum
-from ..resources import human_bytes
-from ..threads import reproducible_call
+from ..core.resources import human_bytes
+from ..core.threads import reproducible_call
 from .cotan import cotan_stiffness, mass_matrix
 from .progress import announce, bar, lanczos_estimate, shown
 from .triangle_mesh import TriangleMesh

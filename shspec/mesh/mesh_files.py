@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..atomic import atomic_output
+from ..core.atomic import atomic_output
 from ..errors import InvalidArgumentError, MeshError
 from .builtin import BUILTIN_MESHES, resolve_mesh_path
 from .triangle_mesh import TriangleMesh
@@ -120,7 +120,7 @@ def save_mesh(mesh: TriangleMesh, path) -> Path:
     InvalidArgumentError
         If ``mesh`` is not a TriangleMesh, ``path`` is not a path or the suffix is unsupported.
     OutputError
-        If the file cannot be written (:func:`shspec.atomic.atomic_output`: the previous file is then intact).
+        If the file cannot be written (:func:`shspec.core.atomic.atomic_output`: the previous file is then intact).
 
     Examples
     --------

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import finite_array
+from ..core.checks import finite_array
 from ..errors import ConvergenceError, InvalidArgumentError, MeshError, NotPositiveError
 from ..sphere.mobius import mobius_translate, newton_step
 from .triangle_mesh import TriangleMesh

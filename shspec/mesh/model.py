@@ -18,14 +18,14 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from ..atomic import atomic_output
-from ..checks import check_options, finite_array
+from ..core.atomic import atomic_output
+from ..core.checks import check_options, finite_array
 from ..errors import InvalidArgumentError, MeshError, NotPositiveError
 from ..spectral_model import TRANSFORMS, SpectralModel, Spectrum, regularization_weight
 from ..sphere.evaluate import sample_harmonic
 from ..sphere.factor import ConformalFactor
 from ..sphere.random import random_coefficients
-from ..threads import reproducible_call
+from ..core.threads import reproducible_call
 from .bridge import fit_harmonic, mesh_band_limit
 from .cotan import cotan_stiffness, vertex_areas
 from .eigen import EigenOptions, eigenpairs

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..checks import finite_array
+from ..core.checks import finite_array
 from ..errors import InvalidArgumentError
-from ..plotstyle import linear_colorbar_ticks, log_colorbar_ticks, style_hammer
+from ..core.plotstyle import linear_colorbar_ticks, log_colorbar_ticks, style_hammer
 from .cotan import vertex_areas
 from .triangle_mesh import TriangleMesh
 

@@ -24,7 +24,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ..errors import ResourceLimitError
-from ..resources import available_memory, human_bytes
+from ..core.resources import available_memory, human_bytes
 
 __all__ = ["LARGE_MESH", "mesh_progress", "shown", "lanczos_estimate", "announce", "bar"]
 

@@ -37,7 +37,7 @@ import scipy.sparse as sp
 from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
-from ..checks import check_float, check_int, finite_array
+from ..core.checks import check_float, check_int, finite_array
 from ..errors import InvalidArgumentError, MeshError
 from ..sphere.evaluate import harmonic_matrix
 from ..sphere.mobius import mobius_translate

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import real_array
+from ..core.checks import real_array
 from ..errors import MeshError
 
 __all__ = ["TriangleMesh"]

@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_outputs, save_figure, write_text
-from ..checks import check_float, check_int, check_options
+from ..core.atomic import atomic_outputs, save_figure, write_text
+from ..core.checks import check_float, check_int, check_options
 from ..embed.ambiguity import AmbiguityReport, detect_ambiguity
 from ..embed.render import render_mesh
 from ..embed.distances import SurfaceDistance, surface_distance
@@ -43,7 +43,7 @@ from ..galerkin.truncation import basis_degree_for
 from ..inverse import FitOptions, align, fit
 from ..inverse.output import success_definition, surface_record
 from ..fitting.surface_plan import DEFAULT_ACCURACY, TRUTH_DEGREE, default_numeig, log_floor, plan_surface_fit
-from ..outputs import ensure_directory
+from ..core.outputs import ensure_directory
 from ..mesh.bridge import fit_harmonic, mesh_band_limit
 from ..mesh.cmcf import CMCFResult, cmcf
 from ..mesh.eigen import mesh_spectrum
@@ -416,7 +416,7 @@ def write_report(result: ValidationResult, out_dir, *, up: str = "z", dpi: int =
     if not isinstance(result, ValidationResult):
         raise InvalidArgumentError(f"expected a ValidationResult, got {type(result).__name__}")
     out = ensure_directory(out_dir)
-    # one unit: a failed write leaves the folder's previous report whole (shspec.atomic.atomic_outputs)
+    # one unit: a failed write leaves the folder's previous report whole (shspec.core.atomic.atomic_outputs)
     with atomic_outputs(out, replaces=REPORT_OUTPUTS) as files:
         s = result.summary
         write_text(files.path("summary.json"), json.dumps(s, indent=1))

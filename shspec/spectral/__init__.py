@@ -7,7 +7,7 @@
 * :mod:`~shspec.spectral.descriptors`: Shape-DNA (area-normalized eigenvalues) and the heat kernel signature;
 * :mod:`~shspec.spectral.descriptor_files`: descriptor files (text that numpy and ``shspec fit`` read);
 * :mod:`~shspec.spectral.batch`: all of it for many meshes, one job per mesh on an Executor
-  (:func:`shspec.parallel.make_executor`).
+  (:func:`shspec.core.parallel.make_executor`).
 """
 
 from .batch import MeshJobResult, collect_meshes, mesh_job, run_batch

@@ -4,7 +4,7 @@
 request the heat kernel signature and the heat-trace topology); it returns arrays instead of writing files, so that
 workers of a remote Dask cluster need no access to the output folder (they do read the mesh files: give paths
 they can see).  :func:`run_batch` submits one job per mesh
-to an executor (:func:`shspec.parallel.make_executor`), writes each mesh's files as its result arrives (tqdm
+to an executor (:func:`shspec.core.parallel.make_executor`), writes each mesh's files as its result arrives (tqdm
 progress), and one CSV table with a row per mesh in the order given.
 """
 
@@ -19,15 +19,15 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from ..atomic import write_text
-from ..checks import check_int
+from ..core.atomic import write_text
+from ..core.checks import check_int
 from ..errors import InvalidArgumentError
-from ..outputs import ensure_directory, write_csv
+from ..core.outputs import ensure_directory, write_csv
 from ..mesh.cotan import MASS_KINDS
 from ..mesh.eigen import mesh_spectrum
 from ..mesh.builtin import resolve_mesh_path
 from ..mesh.mesh_files import MESH_FORMATS, load_mesh
-from ..parallel import SerialExecutor
+from ..core.parallel import SerialExecutor
 from .descriptors import hks_times
 from .descriptor_files import write_descriptors, write_values
 from .topology import TopologyEstimate, estimate_topology

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_output
+from ..core.atomic import atomic_output
 from ..errors import InvalidArgumentError
 from ..spectrum_file import read_spectrum as read_eigenvalues
 from .descriptors import heat_kernel_signature, hks_times, shape_dna

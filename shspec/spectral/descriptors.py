@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..checks import check_int
+from ..core.checks import check_int
 from ..errors import InvalidArgumentError
 from .heat import as_eigenvalues, as_times
 

@@ -50,7 +50,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from ..checks import check_int, check_options
+from ..core.checks import check_int, check_options
 from ..errors import InvalidArgumentError, TopologyError
 from .heat import as_eigenvalues, heat_trace, spectral_tail
 from .weyl import top_density, weyl_fit

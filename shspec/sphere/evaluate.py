@@ -14,7 +14,7 @@ import pyshtools
 from scipy.special import sph_harm_y
 
 from ..errors import InvalidArgumentError
-from ..threads import PYSHTOOLS_LOCK
+from ..core.threads import PYSHTOOLS_LOCK
 from .harmonics import as_coefficients, check_degree, degree_order, vector_to_cilm
 
 __all__ = ["points_to_angles", "harmonic_matrix", "sample_harmonic", "weighted_expansion", "weighted_misfit"]

@@ -13,8 +13,8 @@ import pyshtools
 import scipy.optimize
 
 from ..errors import InvalidArgumentError, NotPositiveError
-from ..plotstyle import linear_colorbar_ticks, style_hammer
-from ..threads import PYSHTOOLS_LOCK
+from ..core.plotstyle import linear_colorbar_ticks, style_hammer
+from ..core.threads import PYSHTOOLS_LOCK
 from .grid import evaluate_on_grid, expand_grid, glq_grid
 from .harmonics import (as_coefficients, check_degree, lmax_of_size, vector_to_cilm, vector_to_shcoeffs)
 

@@ -9,7 +9,7 @@ the longitudes' cosines and sines, not pyshtools' ``MakeGridGLQ``/``SHExpandGLQ`
 FFTW_MEASURE, which times candidate algorithms and keeps the fastest, so their rounding depended on the machine's
 load (measured: the same expansion at L = 47 came out in other bits in 2 of 10 processes started next to a busy
 core), and through the log-ρ model's mass, a fit's path did too.  Products of fixed shapes add in a fixed order on
-the one BLAS thread shspec computes with (:mod:`shspec.threads`); they agree with pyshtools' transforms to rounding
+the one BLAS thread shspec computes with (:mod:`shspec.core.threads`); they agree with pyshtools' transforms to rounding
 (tests) and cost a millisecond at the grids of a fit.
 """
 
@@ -22,7 +22,7 @@ import numpy as np
 import pyshtools
 
 from ..errors import InvalidArgumentError
-from ..threads import PYSHTOOLS_LOCK
+from ..core.threads import PYSHTOOLS_LOCK
 from .harmonics import check_degree, lmax_of_size, vector_to_cilm, cilm_to_vector
 
 __all__ = ["GLQGrid", "glq_grid", "legendre_at_nodes", "evaluate_on_grid", "expand_grid"]

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pyshtools
 
-from ..checks import real_array
+from ..core.checks import real_array
 from ..errors import BandLimitError, ConventionError, InvalidArgumentError
 
 __all__ = [

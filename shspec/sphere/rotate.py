@@ -14,7 +14,7 @@ import numpy as np
 import pyshtools
 
 from ..errors import InvalidArgumentError
-from ..threads import PYSHTOOLS_LOCK
+from ..core.threads import PYSHTOOLS_LOCK
 from .harmonics import as_coefficients, degree_order, lmax_of_size
 
 __all__ = ["power_spectrum", "rotate_coefficients", "rotator", "mirror_coefficients"]

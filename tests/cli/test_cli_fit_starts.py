@@ -13,7 +13,7 @@ import shspec.fitting.plan as fit_plan
 from shspec.cli import build_parser, main
 from shspec.galerkin import HarmonicModel
 from shspec.inverse import FitOptions
-from shspec.parallel import SerialExecutor, usable_cores
+from shspec.core.parallel import SerialExecutor, usable_cores
 from shspec.sphere.random import random_centred_coefficients
 
 

@@ -178,7 +178,7 @@ def test_a_resumed_fit_that_stops_at_its_first_success_equals_the_uninterrupted_
 
 @pytest.mark.slow
 def test_a_process_pool_stops_at_the_first_success_and_its_workers_end(case):
-    from shspec.parallel import make_executor, stop_executor
+    from shspec.core.parallel import make_executor, stop_executor
 
     target, model, opts, serial, _ = case
     pool = make_executor(workers=2)

@@ -429,7 +429,7 @@ def test_starts_on_an_executor_equal_the_serial_run(small):
     target, model = small
     opts = FitOptions(starts=3, seed=4, max_iter=3, schedule=(Stage(4), Stage(6)), basin_hops=0)
     serial = fit(target, model, opts)
-    # spawn, not fork: numba's OpenMP threads make fork unsafe (shspec.parallel.make_executor does the same)
+    # spawn, not fork: numba's OpenMP threads make fork unsafe (shspec.core.parallel.make_executor does the same)
     with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
         pooled = fit(target, model, opts, executor=pool)
     # one thread per worker: pyshtools' Fortran grid routines are not thread-safe (two starts in threads of one

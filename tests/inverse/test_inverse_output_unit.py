@@ -11,7 +11,7 @@ from pathlib import Path
 import matplotlib.figure
 import pytest
 
-from shspec import atomic
+from shspec.core import atomic
 from shspec.errors import NotPositiveError, OutputError
 from shspec.galerkin import HarmonicModel
 from shspec.inverse import FitOptions, fit, plots

@@ -14,7 +14,7 @@ from shspec.errors import InvalidArgumentError
 from shspec.mesh.mesh_files import save_mesh
 from shspec.mesh.shapes import blob, icosphere
 from shspec.mesh.triangle_mesh import TriangleMesh
-from shspec.parallel import SerialExecutor, make_executor
+from shspec.core.parallel import SerialExecutor, make_executor
 from shspec.spectral.batch import TABLE_NAME, run_batch
 
 

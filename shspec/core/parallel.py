@@ -41,7 +41,7 @@ import time
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 
 from .checks import check_int
-from .errors import InvalidArgumentError, SchedulerError
+from ..errors import InvalidArgumentError, SchedulerError
 
 __all__ = ["SerialExecutor", "DaskExecutor", "WorkerPool", "make_executor", "stop_executor", "interruptible",
            "usable_cores", "THREAD_VARIABLES", "CONNECT_TIMEOUT", "OWNER_POLL"]

@@ -45,7 +45,7 @@ from typing import Iterator
 
 import h5py
 
-from .errors import OutputError, ShspecError
+from ..errors import OutputError, ShspecError
 
 __all__ = ["TEMP_SUFFIX", "INCOMPLETE", "MANIFEST", "atomic_path", "atomic_hdf5", "atomic_output", "atomic_outputs",
            "OutputSet", "write_text", "write_hdf5", "save_figure", "write_failure", "temporary_files", "umask_mode"]

@@ -7,7 +7,7 @@ import os
 from pathlib import Path
 
 from .atomic import atomic_output
-from .errors import OutputError
+from ..errors import OutputError
 
 __all__ = ["ensure_directory", "write_csv"]
 

@@ -12,7 +12,7 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import ResourceLimitError
+from ..errors import ResourceLimitError
 
 __all__ = ["Need", "available_memory", "free_disk", "file_size_limit", "load_average", "check_need", "human_bytes"]
 

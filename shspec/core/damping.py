@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 
-from .errors import InvalidArgumentError
+from ..errors import InvalidArgumentError
 
 __all__ = ["nielsen_update"]
 

@@ -35,7 +35,7 @@ import threading
 
 import numba
 
-from .errors import InvalidArgumentError, UnsafeForkError
+from ..errors import InvalidArgumentError, UnsafeForkError
 
 __all__ = ["PYSHTOOLS_LOCK", "NUMBA_LOCK", "serialized", "reproducible", "reproducible_call", "set_reproducible",
            "REDUCTION_CHUNKS"]
