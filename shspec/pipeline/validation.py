@@ -37,7 +37,7 @@ from ..embed.ambiguity import AmbiguityReport, detect_ambiguity
 from ..embed.render import render_mesh
 from ..embed.distances import SurfaceDistance, surface_distance
 from ..embed.embed import EmbedOptions, EmbedResult, embed
-from ..errors import InvalidArgumentError, ShspecError
+from ..errors import InvalidArgumentError, NotPositiveError, ShspecError
 from ..galerkin.log_model import LogHarmonicModel
 from ..galerkin.truncation import basis_degree_for
 from ..inverse import FitOptions, align, fit
@@ -291,7 +291,14 @@ def _fit_and_embed(run: _Run, flow: CMCFResult, target, plan, la: int, lb: int):
         info["predicted_error"] = plan.predicted
     verdict = ("ok" if best.success else "failed: the fitted spectrum does not reach the target within its "
                f"errors ({success_definition(result)} does not hold)")
-    aligned = result.alignment().aligned
+    try:
+        aligned = result.alignment().aligned
+    except NotPositiveError as exc:  # the fit stands; what cannot be made is its comparison with the factors
+        which = _not_positive(target.truth, f"the cMCF factors' expansion of degree {target.truth.lmax}",
+                              result.factor(), "the fitted rho's harmonic expansion")
+        run.status["fit"] = (f"{verdict}; its alignment with the cMCF factors and its re-embedding skipped: {which} "
+                             f"is not positive, so it cannot be Moebius-centred ({exc})")
+        return info, None, None
     info["rho_cilm"] = vector_to_cilm(aligned).tolist()  # the fitted rho, aligned with the cMCF factors
     c_fit = sample_harmonic(aligned, flow.sphere.vertices)
     if np.any(c_fit <= 0):
@@ -302,6 +309,15 @@ def _fit_and_embed(run: _Run, flow: CMCFResult, target, plan, la: int, lb: int):
     run.spectra["fit_embedded_pl"] = mesh_spectrum(fit_emb.mesh, k, whole_multiplets=False).eigenvalues
     run.status["fit"] = verdict
     return info, fit_emb, fit_dist
+
+
+def _not_positive(first, first_name: str, second, second_name: str) -> str:
+    """The name of the first of two harmonic ρ that is not positive on the sphere."""
+    try:
+        first.check_positive()
+    except NotPositiveError:
+        return first_name
+    return second_name
 
 
 def _summary(run: _Run, flow, target, plan, degrees, embedding, fitted, factor_errors) -> dict:

@@ -206,3 +206,10 @@ def test_a_second_fit_into_a_running_fits_folder_is_refused_at_once(tmp_path, ca
     finally:
         first.terminate()
         first.wait()
+
+
+def test_an_empty_output_folder_is_refused_not_taken_as_the_current_one(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit):
+        main(["fit", "--target", "blob", "--out", ""])
+    assert "the output directory is empty" in capsys.readouterr().err and list(tmp_path.iterdir()) == []

@@ -171,3 +171,14 @@ def test_validate_keeps_the_fitted_rho_and_both_surfaces(tmp_path):
     for name in ("embedded.obj", "fit_embedded.obj"):
         assert load_mesh(tmp_path / "v" / name).nvertices == s["nvertices"]
     assert s["fit_embedding"]["hausdorff_relative"] < 0.05  # the pebble is heard: its surface comes back
+
+
+@pytest.mark.slow
+def test_a_truth_that_cannot_be_aligned_is_not_called_a_failed_fit(tmp_path):
+    """spot's cMCF factors span 1:19000; their degree-16 expansion dips below 0, so no fit can be Moebius-aligned
+    with it.  The fit itself reached its target: validate says what was skipped and why, and exits 0."""
+    assert main(["validate", "--target", "mesh:spot_600", "--numeig", "20", "--lmax", "10", "--lmax-factor", "6",
+                 "--out", str(tmp_path / "v")]) == 0
+    status = json.loads((tmp_path / "v" / "summary.json").read_text())["status"]["fit"]
+    assert status.startswith("ok; its alignment with the cMCF factors and its re-embedding skipped: the cMCF "
+                             "factors' expansion of degree 16 is not positive")
