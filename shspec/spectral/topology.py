@@ -109,6 +109,15 @@ class TopologyOptions:
         Smallest σ_χ reported.
     zero_rtol : float
         Eigenvalues below zero_rtol·λ_K count as zero (one per connected component).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import TopologyOptions, estimate_topology
+    >>> l = np.repeat(np.arange(25), 2 * np.arange(25) + 1)
+    >>> strict = TopologyOptions(confidence=5.0)      # call a genus only 5 sigma from the next one
+    >>> estimate_topology(l * (l + 1.0), area=4 * np.pi, options=strict).genus
+    0
     """
 
     tail_tolerance: float = 1e-3
@@ -186,6 +195,15 @@ class TopologyEstimate:
         notes).
     relative_noise : float
         The eigenvalue noise propagated.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import estimate_topology
+    >>> l = np.repeat(np.arange(25), 2 * np.arange(25) + 1)
+    >>> est = estimate_topology(l * (l + 1.0), area=4 * np.pi)
+    >>> est.statement.split(";")[0], est.numeig
+    ('genus 0', 625)
     """
 
     euler_characteristic: float
@@ -291,6 +309,15 @@ def estimate_topology(eigenvalues, area: float | None = None, *, numeig: int | N
     InvalidArgumentError
         If the spectrum is not a closed surface's (see :func:`~shspec.spectral.heat.as_eigenvalues`), shorter
         than :data:`MIN_EIGENVALUES`, or an argument is out of range.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import estimate_topology
+    >>> l = np.repeat(np.arange(25), 2 * np.arange(25) + 1)
+    >>> est = estimate_topology(l * (l + 1.0), area=4 * np.pi)   # the unit sphere's spectrum
+    >>> round(est.euler_characteristic, 2), est.genus, est.confident
+    (2.0, 0, True)
     """
     opt = check_options(options, TopologyOptions)
     lam = as_eigenvalues(eigenvalues, minimum=MIN_EIGENVALUES)
@@ -387,6 +414,14 @@ def check_genus_zero(eigenvalues, area: float | None = None, **kwargs) -> Topolo
     ------
     TopologyError
         When the estimate is confident and its genus is not 0; the message gives χ ± σ and the statement.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.spectral import check_genus_zero
+    >>> l = np.repeat(np.arange(25), 2 * np.arange(25) + 1)
+    >>> check_genus_zero(l * (l + 1.0), area=4 * np.pi).genus     # raises TopologyError for a confident genus > 0
+    0
     """
     if np.size(eigenvalues) < MIN_EIGENVALUES:
         return None
