@@ -50,8 +50,6 @@ def render_mesh(mesh: TriangleMesh, *, ax=None, view: tuple[float, float] = (20.
     'Figure'
     """
     import matplotlib.pyplot as plt
-    from matplotlib import colormaps
-    from matplotlib.colors import Normalize, to_rgb
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     if not isinstance(mesh, TriangleMesh):
@@ -67,17 +65,7 @@ def render_mesh(mesh: TriangleMesh, *, ax=None, view: tuple[float, float] = (20.
     elev, azim = np.radians(view)
     eye = np.array([np.cos(elev) * np.cos(azim), np.cos(elev) * np.sin(azim), np.sin(elev)])
     shade = 0.25 + 0.75 * np.abs(nrm @ eye)
-    if values is None:
-        base = np.tile(to_rgb(color), (mesh.nfaces, 1))
-    else:
-        f = np.asarray(values, dtype=float)
-        if f.shape not in ((mesh.nvertices,), (mesh.nfaces,)) or not np.all(np.isfinite(f)):
-            raise InvalidArgumentError(f"values must be a finite array of shape ({mesh.nvertices},) or "
-                                       f"({mesh.nfaces},)")
-        fv = f[mesh.faces].mean(axis=1) if f.shape == (mesh.nvertices,) else f
-        colours = colormaps[cmap] if isinstance(cmap, str) else cmap
-        norm = Normalize(fv.min() if vmin is None else vmin, fv.max() if vmax is None else vmax)
-        base = colours(norm(fv))[:, :3]
+    base = _face_colours(mesh, color, values, cmap, vmin, vmax)
     if ax is None:
         fig = plt.figure(figsize=(5, 5))
         ax = fig.add_subplot(projection="3d")
@@ -94,3 +82,19 @@ def render_mesh(mesh: TriangleMesh, *, ax=None, view: tuple[float, float] = (20.
     if title:
         ax.set_title(title)
     return ax.figure
+
+
+def _face_colours(mesh: TriangleMesh, color, values, cmap, vmin, vmax) -> np.ndarray:
+    """(m, 3) RGB of the faces before shading: ``color`` everywhere, or ``values`` (per vertex or face) coloured."""
+    from matplotlib import colormaps
+    from matplotlib.colors import Normalize, to_rgb
+
+    if values is None:
+        return np.tile(to_rgb(color), (mesh.nfaces, 1))
+    f = np.asarray(values, dtype=float)
+    if f.shape not in ((mesh.nvertices,), (mesh.nfaces,)) or not np.all(np.isfinite(f)):
+        raise InvalidArgumentError(f"values must be a finite array of shape ({mesh.nvertices},) or ({mesh.nfaces},)")
+    fv = f[mesh.faces].mean(axis=1) if f.shape == (mesh.nvertices,) else f
+    colours = colormaps[cmap] if isinstance(cmap, str) else cmap
+    norm = Normalize(fv.min() if vmin is None else vmin, fv.max() if vmax is None else vmax)
+    return colours(norm(fv))[:, :3]

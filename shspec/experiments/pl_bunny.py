@@ -210,8 +210,7 @@ def _figures(cfg: dict, state: dict, out) -> list:
                           (f"embedded fit, R = {reg:g}", emb_fit)))
         files.append(f"figure1_{name}.png" if f"figure1_{name}.png" not in files else f"figure1_{name}_R{reg:g}.png")
         save_figure(fig, out / files[-1])
-    # Figure 2's target panel shows the last run's mesh, as it always has, though the recursive fit is the first run's
-    name, mesh = state["panels"][-1][0], state["panels"][-1][5]
+    name, mesh = state["panels"][0][0], state["panels"][0][5]  # the recursive fit is the first run's
     fig = _wide_figure()
     p1, p2 = state["recursive"].passes
     for j, (title, sphere, c) in enumerate((("log10 c: pass 1 (cMCF sphere)", p1.sphere, p1.factors),

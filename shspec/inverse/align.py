@@ -125,6 +125,16 @@ def align(fit, truth, *, center: bool = True, center_tol: float = 1e-12) -> Alig
     norm_b = np.linalg.norm(b)
     if norm_b == 0 or np.linalg.norm(a) == 0:
         raise InvalidArgumentError("cannot align a zero factor")
+    angles, mirrored = _best_element_of_o3(a, b, lmax)
+    aligned = rotate_coefficients(mirror_coefficients(a) if mirrored else a, angles)
+    pa, pb = power_spectrum(a), power_spectrum(b)
+    return Alignment(aligned=aligned, reference=b, angles=np.asarray(angles), mirrored=bool(mirrored),
+                     relative_error=float(np.linalg.norm(aligned - b) / norm_b), power=np.stack([pa, pb], 1),
+                     power_error=float(np.linalg.norm(pa - pb) / np.linalg.norm(pb)))
+
+
+def _best_element_of_o3(a: np.ndarray, b: np.ndarray, lmax: int) -> tuple:
+    """(Euler angles, mirrored) of the element of O(3) that maps ``a`` closest to ``b`` (both of degree lmax)."""
     best = (np.inf, None, False)
     seeds = Rotation.create_group("O")
     for mirrored in (False, True):
@@ -156,9 +166,4 @@ def align(fit, truth, *, center: bool = True, center_tol: float = 1e-12) -> Alig
                     break
         if refined[0][0] < best[0]:
             best = (refined[0][0], _euler(refined[0][1]), mirrored)
-    _, angles, mirrored = best
-    aligned = rotate_coefficients(mirror_coefficients(a) if mirrored else a, angles)
-    pa, pb = power_spectrum(a), power_spectrum(b)
-    return Alignment(aligned=aligned, reference=b, angles=np.asarray(angles), mirrored=bool(mirrored),
-                     relative_error=float(np.linalg.norm(aligned - b) / norm_b), power=np.stack([pa, pb], 1),
-                     power_error=float(np.linalg.norm(pa - pb) / np.linalg.norm(pb)))
+    return best[1], best[2]
