@@ -7,6 +7,21 @@ ends the fit cleanly with the best state so far.  By default the fit stops at a 
 (:attr:`FitOptions.stop_at_success`): the starts race in rounds of :attr:`FitOptions.race`, and the answer is the
 success of the first round that has one that took the least work (:mod:`~shspec.inverse.race`), whatever order
 the starts ended in.
+
+On an executor.  Each start is independent and seeded by its index, so the results are those of a serial run, with
+:attr:`FitOptions.stop_at_success` too: when a start of race round r succeeds, the other starts of round r go on
+only while they have done less work, the pending starts of later rounds are cancelled, and the fit waits for the
+running starts of earlier rounds (one of them may succeed, and then it is the answer); starts that ended anyway but
+lost the race are left out of the result.  A start of a later round already running in a process pool cannot be
+cancelled: the fit returns without its result, and it ends in its worker at its next look at the race (within
+:data:`~shspec.inverse.race.POLL_SECONDS` and one iteration); :func:`shspec.core.parallel.stop_executor` ends it at
+once (``shspec fit`` does).  On Ctrl-C the running starts of a :class:`~shspec.core.parallel.WorkerPool`
+(``make_executor(workers=N)``) are interrupted and their best states, status "interrupted", are part of the result
+(waited for up to :data:`INTERRUPT_GRACE` seconds).  Finished starts are checkpointed as they arrive; a start still
+running when the fit stops is run again from its beginning on resume (or from the state a serial run's checkpoint
+holds), as the checkpoints are written between starts only.  Run at most one start per process at a time
+(processes, or Dask workers with one thread each): threads are safe (:mod:`shspec.core.threads`), but they take
+turns in pyshtools' grid routines and numba's parallel kernels.
 """
 
 from __future__ import annotations
@@ -256,22 +271,9 @@ def fit(target: Target | PreparedFit, model: SpectralModel | None = None, option
     executor : concurrent.futures.Executor, optional
         Run the starts on it, and choose the stages' bases there first (a process pool, or a Dask cluster's
         ``Client.get_executor()``; see :func:`shspec.core.parallel.make_executor`); None or a
-        :class:`~shspec.core.parallel.SerialExecutor`: here, one after the other.  Each start is independent and
-        seeded by its index, so the results are those of a serial run, with :attr:`~FitOptions.stop_at_success`
-        too (:mod:`~shspec.inverse.race`): when a start of race round r succeeds, the other starts of round r go
-        on only while they have done less work, the pending starts of later rounds are cancelled, and the fit
-        waits for the running starts of earlier rounds (one of them may succeed, and then it is the answer);
-        starts that ended anyway but lost the race are left out of the result.  A start of a later round already
-        running in a process pool cannot be cancelled: the fit returns without its result, and it ends in its
-        worker at its next look at the race (within :data:`~shspec.inverse.race.POLL_SECONDS` and one iteration);
-        :func:`shspec.core.parallel.stop_executor` ends it at once (``shspec fit`` does).  On Ctrl-C the running starts
-        of a :class:`~shspec.core.parallel.WorkerPool` (``make_executor(workers=N)``) are interrupted and their best
-        states, status "interrupted", are part of the result (waited for up to :data:`INTERRUPT_GRACE` seconds).
-        Finished starts are checkpointed as they arrive; a start still running when the fit stops is run again
-        from its beginning on resume (or from the state a serial run's checkpoint holds), as the checkpoints are
-        written between starts only.  Run at most one start per process at a time (processes, or Dask workers
-        with one thread each): threads are safe (:mod:`shspec.core.threads`), but they take turns in pyshtools' grid
-        routines and numba's parallel kernels.
+        :class:`~shspec.core.parallel.SerialExecutor`: here, one after the other.  The results are those of a
+        serial run; the module notes say how the race, Ctrl-C and the checkpoints go on an executor, and how many
+        starts a process should run at a time.
 
     Returns
     -------
@@ -312,30 +314,42 @@ def fit(target: Target | PreparedFit, model: SpectralModel | None = None, option
         executor = None  # the same starts, with the checkpoints inside them that only a run here writes
     problem = FitProblem(model, target, options, init=init, executor=executor)
     fp = fingerprint(options, target, model, problem.init)
-    finished: list[StartResult] = []
-    current: StartProgress | None = None
-    if resume and options.checkpoint_path is not None and Path(options.checkpoint_path).exists():
-        finished, current, stored = load_checkpoint(options.checkpoint_path, fp, target)
-        # a start the race abandoned runs again: its bound depends on the rounds, and a resumed fit may race in
-        # others (FitOptions.race is not part of the fingerprint) or run every start
-        finished = [r for r in finished if r.status != ABANDONED]
-        # equal to round-off: go on with the checkpoint's own target, as the uninterrupted fit did
-        problem = problem.with_target(stored)
+    problem, finished, current = _resumed(problem, fp) if resume else (problem, [], None)
     done = {r.index for r in finished}
     display = FitDisplay(options.starts, len(problem.stages), options.progress, done=len(done))
     try:
         interrupted = _run_starts(problem, executor, finished, current, done, fp, display)
     finally:
         display.close()
+    return _fit_result(problem, finished, interrupted)
+
+
+def _resumed(problem: FitProblem, fp: dict) -> tuple:
+    """(problem, finished starts, running start or None) to resume from: those of ``options.checkpoint_path``
+    if that file exists, else the problem and no starts."""
+    path = problem.options.checkpoint_path
+    if path is None or not Path(path).exists():
+        return problem, [], None
+    finished, current, stored = load_checkpoint(path, fp, problem.target)
+    # a start the race abandoned runs again: its bound depends on the rounds, and a resumed fit may race in
+    # others (FitOptions.race is not part of the fingerprint) or run every start
+    finished = [r for r in finished if r.status != ABANDONED]
+    # equal to round-off: go on with the checkpoint's own target, as the uninterrupted fit did
+    return problem.with_target(stored), finished, current
+
+
+def _fit_result(problem: FitProblem, finished: list, interrupted: bool) -> FitResult:
+    """The fit's result from its finished starts (no start at all: the interrupt goes on)."""
+    options = problem.options
     if options.stop_at_success:
         # what a serial run reports, wherever the starts ran and whenever the race reached them
         finished = race_outcome(finished, options.race)
     if not finished:
         raise KeyboardInterrupt
     finished.sort(key=lambda r: r.index)
-    solutions = distinct_solutions(finished, model, options.distinct_tol)
-    return FitResult(starts=finished, solutions=solutions, target=problem.target, options=options, model=model,
-                     seconds=float(sum(r.seconds for r in finished)), interrupted=interrupted)
+    solutions = distinct_solutions(finished, problem.model, options.distinct_tol)
+    return FitResult(starts=finished, solutions=solutions, target=problem.target, options=options,
+                     model=problem.model, seconds=float(sum(r.seconds for r in finished)), interrupted=interrupted)
 
 
 def _run_starts(problem: FitProblem, executor, finished: list, current, done: set, fp: str,

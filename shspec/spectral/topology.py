@@ -320,6 +320,34 @@ def estimate_topology(eigenvalues, area: float | None = None, *, numeig: int | N
     (2.0, 0, True)
     """
     opt = check_options(options, TopologyOptions)
+    lam = _used_eigenvalues(eigenvalues, numeig)
+    area = None if area is None else _checked_area(area, lam)
+    noise = float(relative_noise)
+    if not (np.isfinite(noise) and 0 <= noise < 1):
+        raise InvalidArgumentError(f"relative_noise must be in [0, 1), got {relative_noise}")
+
+    (spread, _, p, q, fits), model_spread = _estimate_chi(lam, area, opt, noise)
+    chi = float(np.median([f[0] for f in fits]))
+    parts = {"window": spread, "model": model_spread, "drift": 0.5 * _drift(lam, area, opt, p, q, noise, chi),
+             "noise": float(np.median([f[3] for f in fits]))}
+    sigma, consistent_within, budget = _error_budget(chi, parts, opt)
+    areas = np.array([f[1] for f in fits])
+    components = int(np.count_nonzero(lam <= opt.zero_rtol * lam[-1]))
+    names = [f"a{k}" for k in range(1, p + 1)] + [f"b{k}" for k in range(2, q + 1)]
+    coefs = np.median(np.array([f[2] for f in fits]), axis=0)
+    return TopologyEstimate(
+        euler_characteristic=chi, euler_characteristic_error=sigma,
+        **_genus_verdict(chi, sigma, consistent_within, components, opt),
+        area=float(np.median(areas)), area_error=0.0 if area is not None else 0.5 * float(areas.max() - areas.min()),
+        area_known=area is not None, weyl_area=weyl_fit(lam).area,
+        window=(min(f[4] for f in fits), max(f[5] for f in fits)), numeig=int(lam.size), components=components,
+        positive_powers=p, negative_powers=q, coefficients={k: float(v) for k, v in zip(names, coefs)},
+        error_budget=budget, relative_noise=noise)
+
+
+def _used_eigenvalues(eigenvalues, numeig: int | None) -> np.ndarray:
+    """The first ``numeig`` eigenvalues (all if None), checked: a closed surface's, enough, and in the range the
+    heat-trace fit handles."""
     lam = as_eigenvalues(eigenvalues, minimum=MIN_EIGENVALUES)
     if numeig is not None:
         lam = lam[:check_int(numeig, "numeig", minimum=MIN_EIGENVALUES, maximum=lam.size)]
@@ -329,43 +357,46 @@ def estimate_topology(eigenvalues, area: float | None = None, *, numeig: int | N
             f"the largest eigenvalue {top:.3g} is outside [{_EIGENVALUE_RANGE[0]:g}, {_EIGENVALUE_RANGE[1]:g}], where "
             "the heat-trace fit over- or underflows; rescale the spectrum (a surface scaled by s has eigenvalues "
             "lambda/s^2)")
-    if area is not None:
-        area = float(area)
-        if not (np.isfinite(area) and area > 0):
-            raise InvalidArgumentError(f"area must be finite and positive, got {area}")
-        weyl = 4 * np.pi * (lam.size - 1) / top
-        if not 1 / _AREA_MISMATCH <= area / weyl <= _AREA_MISMATCH:
-            raise InvalidArgumentError(
-                f"the area {area:.3g} is {area / weyl:.2g} times the area Weyl's law gives for this spectrum "
-                f"(about {weyl:.3g}): it is not this surface's area (or the spectrum is in other units)")
-    noise = float(relative_noise)
-    if not (np.isfinite(noise) and 0 <= noise < 1):
-        raise InvalidArgumentError(f"relative_noise must be in [0, 1), got {relative_noise}")
+    return lam
 
-    (spread, _, p, q, fits), model_spread = _estimate_chi(lam, area, opt, noise)
-    chis = np.array([f[0] for f in fits])
-    chi = float(np.median(chis))
+
+def _checked_area(area, lam: np.ndarray) -> float:
+    """A known ``area`` as a float, checked against the spectrum ``lam`` by Weyl's law."""
+    area = float(area)
+    if not (np.isfinite(area) and area > 0):
+        raise InvalidArgumentError(f"area must be finite and positive, got {area}")
+    weyl = 4 * np.pi * (lam.size - 1) / float(lam[-1])
+    if not 1 / _AREA_MISMATCH <= area / weyl <= _AREA_MISMATCH:
+        raise InvalidArgumentError(
+            f"the area {area:.3g} is {area / weyl:.2g} times the area Weyl's law gives for this spectrum "
+            f"(about {weyl:.3g}): it is not this surface's area (or the spectrum is in other units)")
+    return area
+
+
+def _drift(lam, area, opt, p, q, noise, chi: float) -> float:
+    """How far χ moves when the model (p, q) fits only the first half of the eigenvalues (0 when that is all)."""
     half = lam[:max(MIN_EIGENVALUES, lam.size // 2)]
-    drift = 0.0
-    if half.size < lam.size:
-        half_fits = _fit_windows(half, area, opt, p, q, noise)
-        drift = abs(chi - float(np.median([f[0] for f in half_fits])))
-    sigma_noise = float(np.median([f[3] for f in fits]))
-    budget = {"window": spread, "model": model_spread, "drift": 0.5 * drift, "noise": sigma_noise,
-              "floor": opt.floor}
+    if half.size == lam.size:
+        return 0.0
+    return abs(chi - float(np.median([f[0] for f in _fit_windows(half, area, opt, p, q, noise)])))
+
+
+def _error_budget(chi: float, parts: dict, opt) -> tuple:
+    """σ_χ, the bound of rule (a) and the budget: ``parts`` (window, model, drift, noise), the floor and the part
+    ``unexplained`` (module notes)."""
+    budget = {**parts, "floor": opt.floor}
     sigma = float(np.sqrt(sum(v * v for v in budget.values())))
     possible = 2.0 - 2.0 * max(0, round((2.0 - chi) / 2.0))
     unexplained = abs(chi - possible)
     budget["unexplained"] = unexplained if unexplained > opt.consistency * sigma else 0.0
     # rule (a) asks whether the model explains the estimate: with σ before what it does not explain
     consistent_within = opt.consistency * sigma / 2.0
-    sigma = float(np.hypot(sigma, budget["unexplained"]))
+    return float(np.hypot(sigma, budget["unexplained"])), consistent_within, budget
 
-    areas = np.array([f[1] for f in fits])
-    a_est = float(np.median(areas))
-    a_err = 0.0 if area is not None else 0.5 * float(areas.max() - areas.min())
-    components = int(np.count_nonzero(lam <= opt.zero_rtol * lam[-1]))
 
+def _genus_verdict(chi: float, sigma: float, consistent_within: float, components: int, opt) -> dict:
+    """The fields of :class:`TopologyEstimate` about the genus, with χ ± ``sigma``, by the rules (a)–(c) of the
+    module notes."""
     g_est = (2.0 - chi) / 2.0
     g_sigma = sigma / 2.0
     genus = max(0, int(round(g_est)))
@@ -384,16 +415,8 @@ def estimate_topology(eigenvalues, area: float | None = None, *, numeig: int | N
     confident = not reasons
     head = f"genus {genus}; the nearest other integer is {separation:.1f}σ away"
     statement = head if confident else f"genus undetermined (best guess {genus}): " + "; ".join(reasons)
-
-    names = [f"a{k}" for k in range(1, p + 1)] + [f"b{k}" for k in range(2, q + 1)]
-    coefs = np.median(np.array([f[2] for f in fits]), axis=0)
-    return TopologyEstimate(
-        euler_characteristic=chi, euler_characteristic_error=sigma, genus=genus, genus_estimate=g_est,
-        genus_error=g_sigma, separation=float(separation), confident=confident, statement=statement,
-        area=a_est, area_error=a_err, area_known=area is not None, weyl_area=weyl_fit(lam).area,
-        window=(min(f[4] for f in fits), max(f[5] for f in fits)), numeig=int(lam.size), components=components,
-        positive_powers=p, negative_powers=q, coefficients={k: float(v) for k, v in zip(names, coefs)},
-        error_budget=budget, relative_noise=noise)
+    return dict(genus=genus, genus_estimate=g_est, genus_error=g_sigma, separation=float(separation),
+                confident=confident, statement=statement)
 
 
 def check_genus_zero(eigenvalues, area: float | None = None, **kwargs) -> TopologyEstimate | None:
