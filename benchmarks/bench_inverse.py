@@ -34,8 +34,8 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 
 from shspec import HarmonicModel, __version__  # noqa: E402
 from shspec.core.parallel import make_executor, stop_executor  # noqa: E402
-from shspec.inverse import FitOptions, align, fit, # noqa: E402                             degree_ramp, numeig_ramp
-from shspec.fitting import blob_factor, harmonic_target, mesh_target
+from shspec.inverse import FitOptions, align, degree_ramp, fit, numeig_ramp  # noqa: E402
+from shspec.fitting import blob_factor, harmonic_target, mesh_target  # noqa: E402
 from shspec.sphere.random import random_centred_coefficients  # noqa: E402
 from shspec.inverse import plots  # noqa: E402
 from shspec.mesh.figures import plot_spectra_validation, plot_vertex_factors  # noqa: E402
