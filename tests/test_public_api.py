@@ -8,7 +8,7 @@ import warnings
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import shspec
@@ -176,6 +176,7 @@ def _scale_case():
 
 
 @settings(max_examples=25, deadline=None)
+@example(exponent=14, mantissa=2.0, weights="relative")  # the area estimate's lost constant (fixed)
 @given(exponent=st.integers(-300, 300), mantissa=st.floats(1.0, 9.99), weights=st.sampled_from(["relative",
                                                                                                    "absolute"]))
 def test_a_spectrum_at_any_scale_fits_as_at_scale_one(exponent, mantissa, weights):

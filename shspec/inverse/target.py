@@ -134,8 +134,11 @@ def estimate_area(eigenvalues) -> float:
     if lam.ndim != 1 or lam.size < 4 or np.any(lam[1:] <= 0):
         raise InvalidArgumentError("estimating the area needs at least 4 eigenvalues, λ₀ = 0 and the rest > 0")
     n = np.arange(lam.size) + 0.5
-    design = np.stack([lam[1:] / (4 * np.pi), np.ones(lam.size - 1)], 1)
+    # the λ column in units of its largest entry: with λ ~ 1e14 and a column of ones, lstsq's default cut of small
+    # singular values dropped the constant and the area changed with the spectrum's scale
+    unit = lam[-1] / (4 * np.pi)
+    design = np.stack([lam[1:] / (4 * np.pi * unit), np.ones(lam.size - 1)], 1)
     coef = np.linalg.lstsq(design, n[1:], rcond=None)[0]
     if not coef[0] > 0:
         raise InvalidArgumentError("the spectrum does not grow like Weyl's law; cannot estimate the area")
-    return float(coef[0])
+    return float(coef[0] / unit)
