@@ -29,6 +29,30 @@ def shared_meshes() -> Path:
 
 
 @pytest.fixture
+def interrupt_fit(monkeypatch):
+    """``interrupt_fit(at)`` makes the ``at``-th step of the LM optimizer raise KeyboardInterrupt (what Ctrl-C, or
+    SIGTERM as the command line turns it, raises mid-fit), and returns a call that restores the optimizer."""
+    from shspec.inverse.optimize import _CLASSES
+
+    cls = _CLASSES["lm"]
+    original = cls.step
+
+    def arm(at: int):
+        calls = {"n": 0}
+
+        def step(self):
+            calls["n"] += 1
+            if calls["n"] == at:
+                raise KeyboardInterrupt
+            original(self)
+
+        monkeypatch.setattr(cls, "step", step)
+        return lambda: monkeypatch.setattr(cls, "step", original)
+
+    return arm
+
+
+@pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261122)
 

@@ -12,7 +12,6 @@ from shspec import HarmonicModel
 from shspec.errors import CheckpointError
 from shspec.inverse import FitOptions, FitResult, Stage, StartResult, fit, load_result_summary, save_result
 from shspec.fitting import blob_factor, harmonic_target
-from shspec.inverse import optimize as optimize_module
 
 
 @pytest.fixture(scope="module")
@@ -20,28 +19,19 @@ def small():
     return harmonic_target(blob_factor(), 8, 20), HarmonicModel(8, 6)
 
 
-def _interrupted_checkpoint(small, tmp_path, monkeypatch, at=11):
+def _interrupted_checkpoint(small, tmp_path, interrupt_fit, at=11):
     target, model = small
     opts = FitOptions(starts=2, seed=3, max_iter=4, schedule=(Stage(4), Stage(6)), basin_hops=0,
                       checkpoint_every=2, checkpoint_path=str(tmp_path / "ck.h5"))
-    cls = optimize_module._CLASSES["lm"]
-    original, calls = cls.step, {"n": 0}
-
-    def step(self):
-        calls["n"] += 1
-        if calls["n"] == at:
-            raise KeyboardInterrupt
-        original(self)
-
-    monkeypatch.setattr(cls, "step", step)
+    restore = interrupt_fit(at)
     partial = fit(target, model, opts)
-    monkeypatch.setattr(cls, "step", original)
+    restore()
     assert partial.interrupted
     return target, model, opts, partial
 
 
-def test_a_flipped_byte_in_a_checkpoint_is_refused_by_name(small, tmp_path, monkeypatch):
-    target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, monkeypatch)
+def test_a_flipped_byte_in_a_checkpoint_is_refused_by_name(small, tmp_path, interrupt_fit):
+    target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, interrupt_fit)
     with h5py.File(opts.checkpoint_path, "r+") as f:
         x = f["current/state/x"]
         x[0] = np.nextafter(x[0], np.inf)  # one ulp: a silently different resumed fit before checksums
@@ -49,8 +39,8 @@ def test_a_flipped_byte_in_a_checkpoint_is_refused_by_name(small, tmp_path, monk
         fit(target, model, opts, resume=True)
 
 
-def test_a_damaged_checkpoint_is_a_checkpoint_error_not_a_traceback(small, tmp_path, monkeypatch):
-    target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, monkeypatch)
+def test_a_damaged_checkpoint_is_a_checkpoint_error_not_a_traceback(small, tmp_path, interrupt_fit):
+    target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, interrupt_fit)
     with h5py.File(opts.checkpoint_path, "r+") as f:
         del f["current/base"]
         f["current/base"] = np.zeros(3)  # a shortened field
@@ -62,8 +52,8 @@ def test_a_damaged_checkpoint_is_a_checkpoint_error_not_a_traceback(small, tmp_p
         fit(target, model, opts, resume=True)
 
 
-def test_resumed_fit_counts_the_time_of_every_process(small, tmp_path, monkeypatch):
-    target, model, opts, partial = _interrupted_checkpoint(small, tmp_path, monkeypatch)
+def test_resumed_fit_counts_the_time_of_every_process(small, tmp_path, interrupt_fit):
+    target, model, opts, partial = _interrupted_checkpoint(small, tmp_path, interrupt_fit)
     done_before = {r.index: r.seconds for r in partial.starts if r.status != "interrupted"}
     assert done_before  # the first start finished in the first process
     resumed = fit(target, model, opts, resume=True)
@@ -89,10 +79,10 @@ def test_result_file_lists_starts_in_index_order_and_checks_itself(small, tmp_pa
         load_result_summary(path)
 
 
-def test_a_target_moved_by_ulps_still_resumes(small, tmp_path, monkeypatch):
+def test_a_target_moved_by_ulps_still_resumes(small, tmp_path, monkeypatch, interrupt_fit):
     # the blob target is computed: a rebuilt cache table used to move it by a few ulps, and the hash of its bytes
     # in the fingerprint then called the checkpoint "of another fit"
-    target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, monkeypatch)
+    target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, interrupt_fit)
     moved = dataclasses.replace(target, eigenvalues=np.nextafter(target.eigenvalues, np.inf))
     chosen = []  # the stage and search bases depend on the target's size only: chosen once, not again for its copy
     basis = HarmonicModel.stage_basis
@@ -108,8 +98,8 @@ def test_a_target_moved_by_ulps_still_resumes(small, tmp_path, monkeypatch):
         assert np.array_equal(a.params, b.params) and a.energy == b.energy
 
 
-def test_another_target_is_still_refused(small, tmp_path, monkeypatch):
-    target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, monkeypatch)
+def test_another_target_is_still_refused(small, tmp_path, interrupt_fit):
+    target, model, opts, _ = _interrupted_checkpoint(small, tmp_path, interrupt_fit)
     other = dataclasses.replace(target, eigenvalues=target.eigenvalues * (1 + 1e-9))
     with pytest.raises(CheckpointError, match="another target spectrum"):
         fit(other, model, opts, resume=True)

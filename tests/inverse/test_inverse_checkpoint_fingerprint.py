@@ -12,7 +12,6 @@ from shspec import HarmonicModel
 from shspec.errors import CheckpointError
 from shspec.inverse import FitOptions, Stage, fit
 from shspec.fitting.targets import blob_factor, harmonic_target
-from shspec.inverse import optimize as optimize_module
 from shspec.inverse.checkpoint import _IGNORED
 
 #: A changed, valid value of every option that is part of the fingerprint (a new option must be added here).
@@ -30,27 +29,13 @@ def noisy():
     return harmonic_target(blob_factor(), lmax=8, numeig=20).with_noise(1e-3), HarmonicModel(8, 2)
 
 
-def _interrupt_at(monkeypatch, at):
-    cls = optimize_module._CLASSES["lm"]
-    original, calls = cls.step, {"n": 0}
-
-    def step(self):
-        calls["n"] += 1
-        if calls["n"] == at:
-            raise KeyboardInterrupt
-        original(self)
-
-    monkeypatch.setattr(cls, "step", step)
-    return lambda: monkeypatch.setattr(cls, "step", original)
-
-
 @pytest.fixture
-def interrupted(noisy, tmp_path, monkeypatch):
+def interrupted(noisy, tmp_path, interrupt_fit):
     """A fit of start 0 stopped at its third iteration, its checkpoint written every iteration."""
     target, model = noisy
     opts = FitOptions(starts=1, seed=3, max_iter=4, schedule=(Stage(2),), basin_hops=0, stage_basis_tol=None,
                       search_basis_tol=None, checkpoint_every=1, checkpoint_path=str(tmp_path / "ck.h5"))
-    restore = _interrupt_at(monkeypatch, 3)
+    restore = interrupt_fit(3)
     partial = fit(target, model, opts)
     restore()
     assert partial.interrupted

@@ -14,7 +14,6 @@ import pytest
 from shspec import HarmonicModel
 from shspec.inverse import FitOptions, fit
 from shspec.fitting import harmonic_target
-from shspec.inverse import optimize as optimize_module
 from shspec.inverse.checkpoint import fingerprint, save_checkpoint
 from shspec.inverse.race import ABANDONED, race_outcome
 from shspec.sphere.random import random_centred_coefficients
@@ -142,7 +141,7 @@ def test_the_pending_starts_after_a_success_are_cancelled(case):
     assert forwards.ran == [0, 1]  # 2 and 3 never ran
 
 
-def test_a_resumed_fit_that_stops_at_its_first_success_equals_the_uninterrupted_one(case, tmp_path, monkeypatch):
+def test_a_resumed_fit_that_stops_at_its_first_success_equals_the_uninterrupted_one(case, tmp_path, interrupt_fit):
     target, model, opts, serial, every = case
     # a checkpoint of a parallel run in which starts 0, 2 and 3 ended before 1: only 1 is left, and it succeeds
     path = tmp_path / "ck.h5"
@@ -160,18 +159,9 @@ def test_a_resumed_fit_that_stops_at_its_first_success_equals_the_uninterrupted_
     # continues there from its state and the fit ends as the uninterrupted one
     path.unlink()
     inside = replace(checkpointed, checkpoint_every=2)
-    cls = optimize_module._CLASSES["lm"]
-    original, calls = cls.step, {"n": 0}
-
-    def step(self):
-        calls["n"] += 1
-        if calls["n"] == every.starts[0].iterations + 5:
-            raise KeyboardInterrupt
-        original(self)
-
-    monkeypatch.setattr(cls, "step", step)
+    restore = interrupt_fit(every.starts[0].iterations + 5)
     partial = fit(target, model, inside)
-    monkeypatch.setattr(cls, "step", original)
+    restore()
     assert partial.interrupted and [(r.index, r.status) for r in partial.starts][-1] == (1, "interrupted")
     _same(fit(target, model, inside, resume=True, executor=OrderedExecutor(3)), serial)
 

@@ -11,7 +11,6 @@ import pytest
 
 from shspec import HarmonicModel
 from shspec.inverse import FitOptions, Stage, fit
-from shspec.inverse import optimize as optimize_module
 from shspec.fitting.targets import blob_factor, harmonic_target
 
 
@@ -44,20 +43,11 @@ def _same(a, b):
 
 
 @pytest.mark.parametrize("at", [10, 45, 81, 87])  # in a stage, its hops and the final hops
-def test_a_fit_interrupted_anywhere_resumes_to_the_uninterrupted_one(case, tmp_path, monkeypatch, at):
+def test_a_fit_interrupted_anywhere_resumes_to_the_uninterrupted_one(case, tmp_path, monkeypatch, interrupt_fit, at):
     target, model, opts, whole = case
     _cold(monkeypatch)
     opts = dataclasses.replace(opts, checkpoint_path=str(tmp_path / "ck.h5"))
-    cls = optimize_module._CLASSES["lm"]
-    original, calls = cls.step, {"n": 0}
-
-    def step(self):
-        calls["n"] += 1
-        if calls["n"] == at:
-            raise KeyboardInterrupt  # what Ctrl-C or SIGTERM (as the CLI turns it) raises
-        original(self)
-
-    monkeypatch.setattr(cls, "step", step)
+    restore = interrupt_fit(at)  # what Ctrl-C or SIGTERM (as the CLI turns it) raises
     assert fit(target, model, opts).interrupted
-    monkeypatch.setattr(cls, "step", original)
+    restore()
     _same(fit(target, model, opts, resume=True), whole)
