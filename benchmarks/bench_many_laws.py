@@ -23,7 +23,7 @@ option at its default, in a fresh process on the machine's cores, stopped at the
 each start's residual, iterations and time, the error of ρ after Möbius + O(3) alignment, of its per-degree power,
 and the error the fit reported (``rho_error``); recovered means the per-degree power to 1e-8 relative.
 
-Run:  python -m benchmarks run bench_many_laws --degrees 6 [--truths 24] [--per-coefficient 1.5]
+Run:  python -m benchmarks run bench_many_laws --degrees 6 [--truths 24] [--per-coefficient 1.5] [--first N]
 """
 
 from __future__ import annotations
@@ -140,6 +140,8 @@ def main() -> None:
     p.add_argument("--degrees", default="6", help="comma-separated degrees among 6, 8, 10")
     p.add_argument("--truths", type=int, default=24, help="truths per degree (the first N of the fixed list)")
     p.add_argument("--per-coefficient", type=float, default=2.5, help="eigenvalues per coefficient of rho")
+    p.add_argument("--first", type=int, default=0,
+                   help="go on from truth N, keeping the record's truths 0 … N-1 of the same run (made by the same shspec)")
     args = p.parse_args()
     path = RESULTS / NAME
     report = json.loads(path.read_text()) if path.exists() else {}
@@ -148,8 +150,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for degree in (int(d) for d in args.degrees.split(",")):
             key = f"degree{degree}_K{args.per_coefficient:g}"
-            rows = []
-            for index in range(args.truths):
+            rows = runs.get(key, {}).get("truths", [])[:args.first]
+            if [r["seed"] for r in rows] != [[7000, degree, i] for i in range(args.first)]:
+                raise SystemExit(f"--first {args.first}: the record of {key} does not hold truths 0 … {args.first - 1}")
+            for index in range(args.first, args.truths):
                 rows.append(run_truth(degree, index, args.per_coefficient, Path(tmp)))
                 print(key, index, json.dumps({k: v for k, v in rows[-1].items() if k != "per_start"}), flush=True)
                 runs[key] = {"truths": rows, "summary": degree_summary(rows, degree)}
