@@ -10,7 +10,7 @@ result.h5, summary.json and the figures) â†’ :func:`align` against the truth (MÃ
 
 from .align import Alignment, align
 from .checkpoint import load_result_summary, save_result
-from .energy import Objective, eigenvalue_weights, relative_residual
+from .energy import Objective, eigenvalue_weights, relative_residual, target_pairs
 from .multistart import distinct_solutions, fit
 from .options import FitOptions
 from .output import summary, write_result
@@ -22,4 +22,4 @@ from .target import Target, estimate_area
 __all__ = ["Alignment", "align", "load_result_summary", "save_result", "Objective", "eigenvalue_weights",
            "relative_residual", "summary", "write_result", "distinct_solutions", "fit", "FitOptions", "FitResult", "Stage", "StartResult",
            "parse_schedule", "Parametrization", "default_schedule", "numeig_ramp", "degree_ramp", "Target",
-           "estimate_area"]
+           "estimate_area", "target_pairs"]

@@ -6,11 +6,23 @@ with p(x) and u(x) the :class:`~shspec.inverse.parametrization.Parametrization`'
 model's regularizer (:meth:`~shspec.spectral_model.SpectralModel.regularizer`; for harmonic coefficients
 ½‖Da‖² = R‖Δρ‖², on a mesh the cotan bi-Laplacian of c or of log c).  Written as a sum of squares of residuals
 r = [√w (λ − λ*); D u], Gauss–Newton and Levenberg–Marquardt use its Jacobian [√w ∂λ/∂x; D ∂u/∂x] directly.
+
+**Multiple target eigenvalues.**  Where the target repeats an eigenvalue (an axisymmetric ρ: the orders ±m of a
+degree-l mode; a round sphere: 2l + 1 at once), the sorted λ_i of a cluster are not differentiable at the solution:
+they split like |δ| for a smooth δ of the parameters, and Gauss–Newton on them converges linearly at best (the
+many-law benchmark's axisymmetric truths stalled at residuals 1e-6 … 1e-5 within 1e-3 of ρ).  The cluster's part of
+the energy is ½ w̄ ‖H − λ*I‖²_F for H the operator restricted to the cluster's eigenvectors, which is smooth; so each
+pair (a, b) of a cluster adds a residual √(2w̄)·H_ab, zero in the current eigenbasis, whose Jacobian row is the
+first-order change of that entry, −λ̄ v_aᵀ (∂M/∂p) v_b (λ̄ the pair's mean).  The energy and gradient are unchanged;
+the Gauss–Newton model becomes that of the smooth matrix entries (S. Friedland, J. Nocedal, M. L. Overton, "The
+formulation and analysis of numerical methods for inverse eigenvalue problems", SIAM J. Numer. Anal. 24 (1987)).
+The rows come from the model's own Jacobian of the vectors (v_a ± v_b)/√2 (polarization), so every model whose
+∂λ_i is −λ_i times a quadratic form in v_i has them.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -18,7 +30,11 @@ from ..errors import InvalidArgumentError
 from ..spectral_model import SpectralModel, Spectrum
 from .parametrization import Parametrization
 
-__all__ = ["eigenvalue_weights", "relative_residual", "rms_relative_residual", "Evaluation", "Objective"]
+__all__ = ["eigenvalue_weights", "relative_residual", "rms_relative_residual", "target_pairs", "Evaluation",
+           "Objective", "CLUSTER_RTOL"]
+
+#: Target eigenvalues i ≥ 1 closer than this, relative, are one multiple eigenvalue (module notes).
+CLUSTER_RTOL = 1e-9
 
 
 def eigenvalue_weights(target, kind: str = "relative", errors=None) -> np.ndarray:
@@ -92,6 +108,35 @@ def relative_residual(eigenvalues, target) -> float:
 def rms_relative_residual(eigenvalues, target) -> float:
     """RMS over i ≥ 1 of (λ_i − λ*_i) / λ*_i of two (k,) arrays."""
     return float(np.sqrt(np.mean(_relative_errors(eigenvalues, target) ** 2)))
+
+
+def target_pairs(target, weights) -> np.ndarray:
+    """The pairs (a, b), a < b, of indices ≥ 1 within one multiple eigenvalue of ``target`` (k,): runs of
+    consecutive eigenvalues that differ by at most :data:`CLUSTER_RTOL` relative and carry weights > 0 (module notes).
+
+    Returns
+    -------
+    (npairs, 2) int array
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shspec.inverse import target_pairs
+    >>> l = np.repeat(np.arange(3), 2 * np.arange(3) + 1)
+    >>> lam = l * (l + 1.0)                     # the round sphere: 0, 2 (three times), 6 (five times)
+    >>> pairs = target_pairs(lam, np.r_[0.0, np.ones(8)])
+    >>> len(pairs), pairs[:3].tolist()          # 3 pairs in degree 1, 10 in degree 2
+    (13, [[1, 2], [1, 3], [2, 3]])
+    """
+    lam, w = np.asarray(target, dtype=float), np.asarray(weights, dtype=float)
+    same = (np.abs(np.diff(lam)) <= CLUSTER_RTOL * np.abs(lam[1:])) & (w[:-1] > 0) & (w[1:] > 0)
+    same[0] = False  # λ₀ = 0 is fixed, never fitted
+    pairs, start = [], 0
+    for i in range(1, lam.size + 1):
+        if i == lam.size or not same[i - 1]:
+            pairs += [(a, b) for a in range(start, i) for b in range(a + 1, i)]
+            start = i
+    return np.array(pairs, dtype=int).reshape(-1, 2)
 
 
 @dataclass(frozen=True)
@@ -169,6 +214,11 @@ class Objective:
             raise InvalidArgumentError("weights must be >= 0 and shaped like the target")
         self.parametrization = parametrization
         self.sqrt_w = np.sqrt(self.weights)
+        self.pairs = target_pairs(self.target, self.weights)
+        #: the residuals of the pairs of multiple eigenvalues, after the eigenvalues' (module notes): linear in the
+        #: parameters, so a second-order correction (LM's acceleration) leaves them out
+        self.pair_rows = slice(self.target.size, self.target.size + len(self.pairs))
+        self._pair_scale = np.sqrt(self.weights[self.pairs].mean(axis=1))  # √w̄ of each pair
         self.reg_matrix = model.regularizer(reg)
         self._reg_free = None if self.reg_matrix is None else self.reg_matrix[:, parametrization.free]
         self.evaluations = 0
@@ -207,6 +257,8 @@ class Objective:
             dlam = self.model.jacobian(spec)
             grad = par.pullback(x, (self.weights * diff) @ dlam)
             jac = self.sqrt_w[:, None] * par.pullback(x, dlam)
+            if len(self.pairs):
+                jac = np.vstack([jac, par.pullback(x, self._pair_jacobian(spec))])
         else:
             grad = par.pullback(x, self.model.contract(spec, self.weights * diff))
         return self._finish(x, lam, np.asarray(grad), jac)
@@ -218,9 +270,22 @@ class Objective:
         self.evaluations += 1
         return self._finish(x, lam, None, None)
 
+    def _pair_jacobian(self, spec: Spectrum) -> np.ndarray:
+        """Rows √(2w̄)·∂H_ab/∂p of the pairs (npairs, nparams) by polarization: the model's ∂λ of the vectors
+        (v_a ± v_b)/√2 at λ̄ differ by −2λ̄ v_aᵀ(∂M/∂p)v_b."""
+        a, b = self.pairs.T
+        v, lam = spec.eigenvectors, spec.eigenvalues
+        mean = 0.5 * (lam[a] + lam[b])
+        both = replace(spec, eigenvalues=np.repeat(mean, 2),
+                       eigenvectors=np.stack([v[:, a] + v[:, b], v[:, a] - v[:, b]], axis=2).reshape(v.shape[0], -1)
+                       / np.sqrt(2.0))
+        d = self.model.jacobian(both)
+        return self._pair_scale[:, None] * (d[0::2] - d[1::2]) / np.sqrt(2.0)
+
     def _finish(self, x, lam: np.ndarray, grad, jac) -> Evaluation:
-        """The evaluation at x of eigenvalues ``lam`` (k,), with the regularizer's residuals and derivatives."""
-        res = self.sqrt_w * (lam - self.target)
+        """The evaluation at x of eigenvalues ``lam`` (k,), with the pairs' residuals (zero in the current
+        eigenbasis) and the regularizer's residuals and derivatives."""
+        res = np.concatenate([self.sqrt_w * (lam - self.target), np.zeros(len(self.pairs))])
         if self.reg_matrix is not None:
             du = self.reg_matrix @ self.parametrization.variables(x)
             res = np.concatenate([res, du])

@@ -181,6 +181,7 @@ class LevenbergMarquardt(_Optimizer):
         except NotPositiveError:
             return None
         rvv = (2.0 / h) * ((trial.residuals - self.ev.residuals) / h - jv)
+        rvv[self.objective.pair_rows] = 0.0  # taken as linear: values() has no eigenvectors to give them
         a = solve(rvv)
         ok = 2.0 * np.linalg.norm(a * d) <= self._ALPHA * np.linalg.norm(v * d)
         return a if ok else None
