@@ -44,6 +44,7 @@ from ..spectrum_file import read_spectrum, read_spectrum_file
 from ..sphere.factor import ConformalFactor
 from ..sphere.random import random_centred_coefficients
 from .adaptive import adaptive_fit
+from .expected import Measured, expectation
 from .initial import initial_parameters, read_initial, read_truth
 from .numeig_plan import SEARCH_NUMEIG_FACTOR, NumeigPlan, plan_fit
 from .request import FitRequest
@@ -141,6 +142,7 @@ class FitPlan(PreparedFit):
     adaptive: object = None
     workers: int | None = None
     scheduler: str | None = None
+    expectation: tuple = field(default=(None, None), repr=False)
 
     def choice(self, name: str) -> Choice:
         """The choice of that name ("model", "lmax_factor", "numeig", "lmax", "reg")."""
@@ -160,6 +162,8 @@ class FitPlan(PreparedFit):
         if self.expected_error is not None:
             lines.append(f"  before fitting: the target's errors allow rho to about {self.expected_error:.2g} "
                          "(expected relative L2 error at a random start of the fit's law)")
+        if self.expectation[1] is not None:
+            lines.append(f"  {self.expectation[1]}")
         return "\n".join(lines)
 
     def record(self) -> dict:
@@ -175,6 +179,9 @@ class FitPlan(PreparedFit):
             out["expected_error"] = self.expected_error
         if self.numeig_auto is not None:
             out["numeig_auto"] = self.numeig_auto
+        measured, said = self.expectation
+        if said is not None:
+            out["expectation"] = {"measured": None if measured is None else measured.to_dict(), "said": said}
         return out
 
     def run(self, fit_target, *, resume: bool = False, executor=None):
@@ -284,10 +291,11 @@ def prepare_fit(target, **fields) -> FitPlan:
     target = _with_truth(p.target, request.truth)
     _check_genus(request, target)
     model = _model(p)
+    where = _where(request)
     return FitPlan(target, model, _options(p), init=_init(request, model), choices=tuple(p.choices),
                    notes=tuple(p.notes), expected_error=_expected_error(p, model, target),
                    surface_plan=p.surface_plan, numeig_plan=p.numeig_plan, numeig_auto=p.numeig_auto,
-                   adaptive=request.adaptive, **_where(request))
+                   adaptive=request.adaptive, expectation=_expectation(p, target, where), **where)
 
 
 def _check_noise(r: FitRequest) -> None:
@@ -572,6 +580,26 @@ def _expected_error(p: _Planning, model, target: Target) -> float | None:
     ref = model.random_start(np.random.default_rng([opt.seed, 0]), opt.start_amplitude, target.area_estimate())
     noise = np.r_[1.0, target.errors[1:] / target.eigenvalues[1:]]
     return identifiability(model, ref, target.numeig, noise=noise).noise_error
+
+
+def _expectation(p: _Planning, target: Target, where: dict) -> tuple[Measured | None, str]:
+    """The many-law benchmark's record for this fit (:func:`~shspec.fitting.expected.expectation`), or why it
+    does not apply: the benchmark fits exact spectra with a harmonic model, the default options and schedule, its
+    starts on two processes."""
+    r, defaults = p.request, FitOptions()
+    # the seed draws other starts of the same law; checkpoints and progress do not change a start's path
+    changed = [f.name for f in dataclasses.fields(FitOptions)
+               if f.name not in ("progress", "seed", "checkpoint_every", "checkpoint_path")
+               and getattr(r.options, f.name) != getattr(defaults, f.name)] + ["reg"] * (r.reg is not None)
+    serial = where["scheduler"] is None and (where["workers"] or 1) < 2
+    unlike = next((why for differs, why in (
+        (p.kind != "harmonic", f"a {p.kind} fit; the many-law benchmark measures harmonic fits of spectra"),
+        (target.errors is not None, "the target has errors; the benchmark's spectra are exact"),
+        (bool(changed), f"options other than the defaults: {', '.join(changed)}"),
+        (r.schedule != "auto" or r.hop_degree is not None, "a schedule other than the default"),
+        (r.init is not None, "a given start"),
+        (serial, "the starts run one after another; the benchmark ran them on two processes")) if differs), None)
+    return expectation(p.lmax_factor, target.numeig, unlike)
 
 
 def _where(r: FitRequest) -> dict:
