@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -31,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from common import RESULTS, git_commit, machine_info, run_fit_command, write_json  # noqa: E402
+from common import run_fit_command, updated_record, write_json  # noqa: E402
 
 from shspec.sphere.random import random_centred_coefficients  # noqa: E402
 
@@ -72,9 +71,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--only", help="run only the cases whose name contains this text")
     args = p.parse_args()
-    path = RESULTS / NAME
-    report = json.loads(path.read_text()) if path.exists() else {}
-    report.update(machine=machine_info(), commit=git_commit(), cpu_count=os.cpu_count())
+    report = updated_record(NAME)
     cases = report.setdefault("cases", {})
     with tempfile.TemporaryDirectory() as tmp:
         for name in CASES:

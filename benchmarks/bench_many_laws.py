@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
 import sys
 import tempfile
@@ -41,7 +40,7 @@ import scipy.linalg
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_forward import basis_on_grid, quadrature_mass  # noqa: E402
-from common import RESULTS, git_commit, machine_info, run_fit_command, write_json  # noqa: E402
+from common import run_fit_command, updated_record, write_json  # noqa: E402
 
 from shspec.sphere.factor import ConformalFactor  # noqa: E402
 from shspec.sphere.grid import glq_grid  # noqa: E402
@@ -141,11 +140,10 @@ def main() -> None:
     p.add_argument("--truths", type=int, default=24, help="truths per degree (the first N of the fixed list)")
     p.add_argument("--per-coefficient", type=float, default=2.5, help="eigenvalues per coefficient of rho")
     p.add_argument("--first", type=int, default=0,
-                   help="go on from truth N, keeping the record's truths 0 … N-1 of the same run (made by the same shspec)")
+                   help="go on from truth N, keeping the record's truths 0 … N-1 of the same run (made by the "
+                        "same shspec)")
     args = p.parse_args()
-    path = RESULTS / NAME
-    report = json.loads(path.read_text()) if path.exists() else {}
-    report.update(machine=machine_info(), commit=git_commit(), cpu_count=os.cpu_count())
+    report = updated_record(NAME)
     runs = report.setdefault("runs", {})
     with tempfile.TemporaryDirectory() as tmp:
         for degree in (int(d) for d in args.degrees.split(",")):

@@ -229,6 +229,15 @@ def write_json(name: str, data: dict) -> Path:
     return path
 
 
+def updated_record(name: str) -> dict:
+    """The record ``name`` as written before (empty if none), with this run's machine, commit and core count: for
+    benchmarks that add their cases to it run by run."""
+    path = RESULTS / name
+    report = json.loads(path.read_text()) if path.exists() else {}
+    report.update(machine=machine_info(), commit=git_commit(), cpu_count=os.cpu_count())
+    return report
+
+
 def command_line(doc: str):
     """The command line of a benchmark without options: ``--help`` says what it measures; returns the parsed
     arguments."""
