@@ -146,11 +146,11 @@ class Evaluation:
     Attributes
     ----------
     energy : float
-    residuals : (k + nreg,) array
-        r = [√w (λ − λ*); D p].
+    residuals : (k + npairs + nreg,) array
+        r = [√w (λ − λ*); 0 for each pair of a multiple eigenvalue (module notes); D p].
     gradient : (nfree,) array or None
         ∂E/∂x over the free parameters (None from :meth:`Objective.values`).
-    jacobian : (k + nreg, nfree) array or None
+    jacobian : (k + npairs + nreg, nfree) array or None
         ∂r/∂x, when asked for.
     eigenvalues : (k,) array
     relative_residual : float
