@@ -154,7 +154,7 @@ def main() -> None:
             for index in range(args.first, args.truths):
                 rows.append(run_truth(degree, index, args.per_coefficient, Path(tmp)))
                 print(key, index, json.dumps({k: v for k, v in rows[-1].items() if k != "per_start"}), flush=True)
-                runs[key] = {"truths": rows, "summary": degree_summary(rows, degree)}
+                runs[key] = {"truths": rows, "summary": degree_summary(rows, degree), "commit": report["commit"]}
                 write_json(NAME, report)
             print(key, json.dumps(runs[key]["summary"]), flush=True)
     print(write_json(NAME, report))
