@@ -56,10 +56,6 @@ class Measured:
         return (f"{self.recovered} of {self.truths} recovered within {self.goal_s:.0f} s; wall time median "
                 f"{self.wall_median_s:.0f} s, 90th percentile {self.wall_p90_s:.0f} s")
 
-    def to_dict(self) -> dict:
-        return {"degree": self.degree, "per_coefficient": self.per_coefficient, "truths": self.truths,
-                "recovered": self.recovered, "goal_s": self.goal_s, "wall_median_s": self.wall_median_s,
-                "wall_p90_s": self.wall_p90_s}
 
 
 #: Every run of the many-law benchmark (``benchmarks/results/bench_many_laws.json``), an idle 2-core machine.

@@ -181,7 +181,7 @@ class FitPlan(PreparedFit):
             out["numeig_auto"] = self.numeig_auto
         measured, said = self.expectation
         if said is not None:
-            out["expectation"] = {"measured": None if measured is None else measured.to_dict(), "said": said}
+            out["expectation"] = {"measured": None if measured is None else dataclasses.asdict(measured), "said": said}
         return out
 
     def run(self, fit_target, *, resume: bool = False, executor=None):

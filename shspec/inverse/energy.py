@@ -22,6 +22,7 @@ The rows come from the model's own Jacobian of the vectors (v_a ± v_b)/√2 (po
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -129,13 +130,10 @@ def target_pairs(target, weights) -> np.ndarray:
     (13, [[1, 2], [1, 3], [2, 3]])
     """
     lam, w = np.asarray(target, dtype=float), np.asarray(weights, dtype=float)
-    same = (np.abs(np.diff(lam)) <= CLUSTER_RTOL * np.abs(lam[1:])) & (w[:-1] > 0) & (w[1:] > 0)
-    same[0] = False  # λ₀ = 0 is fixed, never fitted
-    pairs, start = [], 0
-    for i in range(1, lam.size + 1):
-        if i == lam.size or not same[i - 1]:
-            pairs += [(a, b) for a in range(start, i) for b in range(a + 1, i)]
-            start = i
+    # runs from index 1 on (λ₀ = 0 is fixed, never fitted), cut where neighbours differ or one is unweighted
+    joined = (np.abs(np.diff(lam[1:])) <= CLUSTER_RTOL * np.abs(lam[2:])) & (w[1:-1] > 0) & (w[2:] > 0)
+    bounds = np.concatenate([[1], np.flatnonzero(~joined) + 2, [max(lam.size, 1)]])
+    pairs = [pair for lo, hi in zip(bounds[:-1], bounds[1:]) for pair in itertools.combinations(range(lo, hi), 2)]
     return np.array(pairs, dtype=int).reshape(-1, 2)
 
 
