@@ -15,6 +15,7 @@ import json
 import os
 from pathlib import Path
 
+from .core.atomic import check_complete, write_text
 from .errors import InvalidArgumentError
 
 __all__ = ["build_report", "experiment_markdown", "validation_markdown", "markdown_table"]
@@ -76,6 +77,7 @@ def build_report(folders, out) -> Path:
     out.parent.mkdir(parents=True, exist_ok=True)
     sections, toc = [], []
     for run in runs:
+        check_complete(run)
         meta = json.loads((run / "meta.json").read_text())
         config = json.loads((run / "config.json").read_text()) if (run / "config.json").is_file() else {}
         finding = _finding((run / "report.md").read_text()) if (run / "report.md").is_file() else ""
@@ -97,7 +99,7 @@ def build_report(folders, out) -> Path:
     page = (f"<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>shspec experiments</title>"
             f"<style>{_STYLE}</style></head><body><h1>shspec experiments</h1><ul>{''.join(toc)}</ul>\n"
             + "\n".join(sections) + "\n</body></html>\n")
-    out.write_text(page)
+    write_text(out, page)
     return out
 
 

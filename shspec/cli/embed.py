@@ -6,11 +6,11 @@ import json
 import sys
 from pathlib import Path
 
-from ..core.atomic import atomic_output
+from ..core.atomic import atomic_output_files
 from ..embed.embed import EmbedOptions, embed
 from ..errors import InvalidArgumentError, OutputError
 from ..pipeline.validation import ValidationOptions, validate_target, write_report
-from ..mesh.mesh_files import load_mesh, save_mesh
+from ..mesh.mesh_files import MESH_FORMATS, load_mesh, save_mesh
 from ._common import load_numbers
 
 
@@ -53,10 +53,18 @@ def register(subparsers) -> None:
 
 
 def _embed(args) -> int:
+    # checked before the embedding, whose result would otherwise be lost
+    if args.out.suffix.lower() not in MESH_FORMATS:
+        raise InvalidArgumentError(f"--out {args.out}: unsupported mesh format {args.out.suffix!r}; use one of "
+                                   f"{MESH_FORMATS}")
+    if args.summary is not None and args.summary.resolve() == args.out.resolve():
+        raise InvalidArgumentError(f"--summary and --out are the same file {args.out}")
+    for path in (args.out, args.summary):
+        if path is not None and not path.parent.is_dir():
+            raise OutputError(f"cannot write {path}: the folder {path.parent} does not exist")
     sphere = load_mesh(args.sphere, validate=False)
     factors = load_numbers(args.factors, "conformal factors of the vertices")
     res = embed(sphere, factors, EmbedOptions(steps=args.steps, pressure=args.pressure, smoothing=args.smoothing))
-    save_mesh(res.mesh, args.out)
     summary = {"sphere": str(args.sphere), "factors": str(args.factors), "out": str(args.out),
                "steps_option": args.steps, "pressure": args.pressure, "smoothing": args.smoothing,
                "edge_length_error": res.edge_error_rms,
@@ -64,9 +72,11 @@ def _embed(args) -> int:
                "self_intersections": res.self_intersections, "steps": res.steps,
                "iterations": res.iterations, "factorizations": res.factorizations, "success": res.success,
                "seconds": res.seconds, "cpu_seconds": res.cpu_seconds}
-    if args.summary is not None:
-        with atomic_output(args.summary) as tmp:
-            tmp.write_text(json.dumps(summary, indent=1) + "\n")
+    # one unit: a failed write leaves the mesh and the summary of an earlier run as they were
+    with atomic_output_files([args.out] + ([args.summary] if args.summary is not None else [])) as files:
+        save_mesh(res.mesh, files[0], file_type=args.out.suffix)
+        if args.summary is not None:
+            files[1].write_text(json.dumps(summary, indent=1) + "\n")
     print(json.dumps(summary))
     if not res.success:  # the exit code alone would leave the reader to decode the JSON
         why = [f"{what}" for what, bad in (

@@ -45,10 +45,11 @@ from typing import Iterator
 
 import h5py
 
-from ..errors import OutputError, ShspecError
+from ..errors import InvalidArgumentError, OutputError, ShspecError
 
-__all__ = ["TEMP_SUFFIX", "INCOMPLETE", "MANIFEST", "atomic_path", "atomic_hdf5", "atomic_output", "atomic_outputs",
-           "OutputSet", "write_text", "write_hdf5", "save_figure", "write_failure", "temporary_files", "umask_mode"]
+__all__ = ["TEMP_SUFFIX", "INCOMPLETE", "MANIFEST", "atomic_path", "atomic_paths", "atomic_hdf5", "atomic_output",
+           "atomic_output_files", "atomic_outputs",
+           "OutputSet", "check_complete", "write_text", "write_hdf5", "save_figure", "write_failure", "temporary_files", "umask_mode"]
 
 TEMP_SUFFIX = ".tmp"
 
@@ -148,27 +149,66 @@ def atomic_path(path: str | os.PathLike, *, mode: int = 0o644) -> Iterator[Path]
     >>> with atomic_path(folder / "result.json") as tmp:      # doctest: +SKIP
     ...     tmp.write_text(json.dumps(record))
     """
-    path = Path(path)
+    with atomic_paths([path], mode=mode) as (tmp,):
+        yield tmp
+
+
+@contextlib.contextmanager
+def atomic_paths(paths, *, mode: int = 0o644) -> Iterator[tuple[Path, ...]]:
+    """:func:`atomic_path` for several files that belong together, in any folders (a mesh and its summary).
+
+    Every destination gets its temporary file; when the block succeeds all of them are fsynced first and only then
+    renamed over their destinations, so that a failure while writing or syncing any of them (a full disk) leaves
+    every destination as it was.  Only a SIGKILL between the renames, which follow one another without a write,
+    can leave some files new and others old.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        Distinct destinations, each in an existing folder.
+    mode : int
+        As for :func:`atomic_path`.
+
+    Yields
+    ------
+    tuple of pathlib.Path
+        The temporary files, in the order of ``paths``.
+
+    Raises
+    ------
+    OSError
+        As for :func:`atomic_path`; no destination has changed.
+    ValueError
+        If a destination is given twice.
+    """
+    paths = [Path(p) for p in paths]
+    if len({os.path.abspath(p) for p in paths}) != len(paths):
+        raise ValueError(f"a destination is given twice: {[str(p) for p in paths]}")
     with _held_interrupts() as check_interrupt:
-        fd, name = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=TEMP_SUFFIX)
-        tmp = Path(name)
+        temps: list[Path] = []
         try:
-            os.fchmod(fd, umask_mode(mode))
-            os.close(fd)
-            fd = -1
+            for path in paths:
+                fd, name = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=TEMP_SUFFIX)
+                temps.append(Path(name))
+                try:
+                    os.fchmod(fd, umask_mode(mode))
+                finally:
+                    os.close(fd)
             check_interrupt()
-            yield tmp
-            with open(tmp, "rb+") as fh:
-                os.fsync(fh.fileno())
-            check_interrupt()  # the last moment to give up: after it the new content replaces the old
-            os.replace(tmp, path)
+            yield tuple(temps)
+            for tmp in temps:
+                with open(tmp, "rb+") as fh:
+                    os.fsync(fh.fileno())
+            check_interrupt()  # the last moment to give up: after it the new contents replace the old
+            for tmp, path in zip(temps, paths):
+                os.replace(tmp, path)
         except BaseException:
-            if fd >= 0:
-                os.close(fd)
-            with contextlib.suppress(OSError):
-                tmp.unlink()
+            for tmp in temps:
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
             raise
-        _fsync_dir(path.parent)
+        for folder in dict.fromkeys(path.parent for path in paths):
+            _fsync_dir(folder)
 
 
 @contextlib.contextmanager
@@ -218,11 +258,12 @@ def _reason(exc: BaseException) -> str:
 
 
 def write_failure(path: str | os.PathLike, exc: BaseException, *, existed: bool,
-                  error: type[OSError] = OutputError) -> OSError:
+                  error: type[OSError] = OutputError, left: str | None = None) -> OSError:
     """The error to raise when an atomic write of ``path`` failed with ``exc``: it names the file, the reason in
-    words and what is left (the previous file intact, or nothing written).  ``existed`` says whether ``path`` held a
-    file before the write."""
-    left = f"the previous {Path(path).name} is intact" if existed else "nothing was written"
+    words and what is left (the previous file intact, or nothing written; or ``left``, in words).  ``existed`` says
+    whether ``path`` held a file before the write."""
+    if left is None:
+        left = f"the previous {Path(path).name} is intact" if existed else "nothing was written"
     out = error(f"cannot write {path}: {_reason(exc)}; {left}")
     # not OSError.filename, which would change the message
     out.errno, out.output_path = _errno(exc), Path(path)
@@ -252,16 +293,64 @@ def atomic_output(path: str | os.PathLike, *, mode: int = 0o644, error: type[OSE
         If the temporary file cannot be created, written, synced or renamed (:func:`write_failure`).  Errors of
         shspec raised inside the block propagate unchanged.
     """
-    path = Path(path)
-    existed = path.exists()
+    with atomic_output_files([path], mode=mode, error=error, hdf5=hdf5) as (tmp,):
+        yield tmp
+
+
+@contextlib.contextmanager
+def atomic_output_files(paths, *, mode: int = 0o644, error: type[OSError] = OutputError,
+                        hdf5: bool = False) -> Iterator[tuple[Path, ...]]:
+    """:func:`atomic_paths` for the outputs of a command that writes files in folders of the user's choosing (a
+    mesh and its summary): all new, or all as they were, and a failure of the file system becomes one ``error``.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        Distinct destinations, each in an existing folder.
+    mode, error, hdf5
+        As for :func:`atomic_output`.
+
+    Yields
+    ------
+    tuple of pathlib.Path
+        The temporary files, in the order of ``paths``.
+
+    Raises
+    ------
+    OutputError (or ``error``)
+        If a file cannot be created, written, synced or renamed: it names the file and the reason, and says that
+        no destination has changed.  Errors of shspec raised inside the block propagate unchanged.
+    """
+    paths = [Path(p) for p in paths]
+    existed = [p.exists() for p in paths]
     caught = (OSError, RuntimeError) if hdf5 else (OSError,)
+    temps: tuple[Path, ...] = ()
     try:
-        with atomic_path(path, mode=mode) as tmp:
-            yield tmp
-    except ShspecError:
-        raise
+        with atomic_paths(paths, mode=mode) as temps:
+            yield temps
+        return
+    except ShspecError as exc:
+        # a writer that writes atomically itself (save_mesh) failed on a temporary file: name the destination
+        if getattr(exc, "output_path", None) not in temps:
+            raise
+        failure = exc.__cause__ or exc
     except caught as exc:
-        raise write_failure(path, exc, existed=existed, error=error) from exc
+        failure = exc
+    failed = _failed_destination(failure, paths)
+    left = None
+    if len(paths) > 1:
+        left = f"none of {', '.join(map(str, paths))} has changed" if any(existed) else "nothing was written"
+    raise write_failure(failed, failure, existed=existed[paths.index(failed)], error=error, left=left) from failure
+
+
+def _failed_destination(exc: BaseException, paths: list[Path]) -> Path:
+    """The destination whose write failed with ``exc``: the one its file name (a temporary file's) belongs to, or
+    the first."""
+    name = Path(getattr(exc, "filename", None) or "").name
+    for path in paths:
+        if name == path.name or name.startswith(path.name + ".") and name.endswith(TEMP_SUFFIX):
+            return path
+    return paths[0]
 
 
 def write_text(path: str | os.PathLike, text: str) -> Path:
@@ -297,11 +386,26 @@ def save_figure(fig, path: str | os.PathLike, **savefig_options) -> Path:
 
 
 class OutputSet:
-    """The files of one run being written by :func:`atomic_outputs`: :meth:`path` gives where to write each."""
+    """The files of one run being written by :func:`atomic_outputs`: :meth:`path` gives where to write each, and
+    :attr:`folder` is where a writer that names its own files (an experiment's figures) puts them."""
 
     def __init__(self, directory: Path, staging: Path):
         self.directory, self.staging = directory, staging
         self.names: list[str] = []
+
+    @property
+    def folder(self) -> Path:
+        """The staging folder: every plain file written into it is an output of the run, as if named by
+        :meth:`path`."""
+        return self.staging
+
+    def _collect(self) -> None:
+        """Add the files written straight into :attr:`folder` to :attr:`names`."""
+        written = sorted(p.name for p in self.staging.iterdir() if p.name not in self.names and p.name != MANIFEST)
+        for name in written:
+            if not (self.staging / name).is_file() or name == INCOMPLETE:
+                raise ValueError(f"an output is a plain file other than {INCOMPLETE}; {name!r} is not")
+        self.names += written
 
     def path(self, name: str) -> Path:
         """Where to write the output ``name`` (a file name in the folder, written completely inside the block)."""
@@ -339,14 +443,16 @@ def atomic_outputs(directory: str | os.PathLike, *, replaces=()) -> Iterator[Out
     try:
         try:
             yield outputs
+            outputs._collect()
             with open(staging / MANIFEST, "w", encoding="utf-8") as fh:
                 fh.write(json.dumps(outputs.names) + "\n")
         except (OSError, RuntimeError) as exc:  # h5py reports a failed write as a RuntimeError
             # the file the block was writing, in the words of the failure under shspec's own error if there is one
             failed = getattr(exc, "output_path", None) or getattr(exc, "filename", None)
-            name = Path(failed).name if failed else outputs.names[-1] if outputs.names else MANIFEST
+            name = Path(failed).name if failed else outputs.names[-1] if outputs.names else None
+            what = directory / name if name else f"the outputs of this run into {directory}"
             cause = exc.__cause__ if isinstance(exc, ShspecError) and exc.__cause__ is not None else exc
-            raise OutputError(f"cannot write {directory / name}: {_reason(cause)}; the outputs of this run were not "
+            raise OutputError(f"cannot write {what}: {_reason(cause)}; the outputs of this run were not "
                               f"written, and those of {directory} are as they were") from exc
         _swap_in(outputs, set(replaces))
     finally:
@@ -379,6 +485,27 @@ def _swap_in(outputs: OutputSet, replaces: set) -> None:
         raise OutputError(f"cannot put the outputs of this run into {directory}: {_reason(exc)}; the folder now "
                           f"mixes two runs, as its file {INCOMPLETE} says: run again") from exc
     _fsync_dir(directory)
+
+
+def check_complete(path: str | os.PathLike) -> None:
+    """Refuse to read the outputs of a run from a folder whose last :func:`atomic_outputs` was cut short.
+
+    Parameters
+    ----------
+    path : path-like
+        A folder of outputs, or one of its files.
+
+    Raises
+    ------
+    InvalidArgumentError
+        If the folder holds the marker :data:`INCOMPLETE`: its files may come from two runs.
+    """
+    path = Path(path)
+    folder = path if path.is_dir() else path.parent
+    if (folder / INCOMPLETE).exists():
+        raise InvalidArgumentError(f"cannot read {path}: the folder {folder} is marked {INCOMPLETE} (a run was "
+                                   "stopped while it replaced its outputs), so its files may come from two runs; run "
+                                   "it again")
 
 
 def temporary_files(path: str | os.PathLike) -> list[Path]:

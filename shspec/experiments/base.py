@@ -24,6 +24,7 @@ import numpy as np
 
 from .._version import __version__
 from ..errors import InvalidArgumentError
+from ..core.atomic import atomic_outputs
 from ..core.outputs import ensure_directory, write_csv
 from ..report import experiment_markdown
 from ..core.resources import load_average
@@ -103,7 +104,19 @@ _THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS
 
 
 def run_experiment(name: str, out, *, config_path=None, quick: bool = False, progress: bool = True) -> Path:
-    """Run experiment ``name`` into the folder ``out``; returns the path of its ``report.md``."""
+    """Run experiment ``name`` into the folder ``out``; returns the path of its ``report.md``.
+
+    The run's files are one unit (:func:`shspec.core.atomic.atomic_outputs`): they are written into a staging folder
+    and replace those of an earlier run in ``out`` only when all of them are written, so that an error, Ctrl-C or a
+    full disk leaves ``out`` as it was, never a folder whose files come from two runs.
+
+    Raises
+    ------
+    InvalidArgumentError
+        If there is no experiment ``name``, or the config file cannot be read or does not fit it.
+    OutputError
+        If ``out`` cannot be written (it is then as it was).
+    """
     if name not in EXPERIMENTS:
         raise InvalidArgumentError(f"no experiment {name!r}; available: {', '.join(sorted(EXPERIMENTS))}")
     exp = EXPERIMENTS[name]
@@ -111,31 +124,39 @@ def run_experiment(name: str, out, *, config_path=None, quick: bool = False, pro
     if config_path is not None:
         config = _merge(config, load_config(config_path), name)
     out = ensure_directory(out)
-    (out / "config.json").write_text(json.dumps({"experiment": name, "quick": quick, **config}, indent=1))
-    if config_path is not None:
-        shutil.copy(config_path, out / "config.toml")
+    with atomic_outputs(out) as files:
+        _run(exp, config, files.folder, quick=quick, config_path=config_path, progress=progress)
+    report = out / "report.md"
     if progress:
-        print(f"{name}: {exp.title}; expected run time about "
+        print(f"{name}: report {report}")
+    return report
+
+
+def _run(exp: Experiment, config: dict, folder: Path, *, quick: bool, config_path, progress: bool) -> None:
+    """Run ``exp`` writing every file of the run into ``folder``."""
+    (folder / "config.json").write_text(json.dumps({"experiment": exp.name, "quick": quick, **config}, indent=1))
+    if config_path is not None:
+        shutil.copy(config_path, folder / "config.toml")
+    if progress:
+        print(f"{exp.name}: {exp.title}; expected run time about "
               f"{'under a minute' if quick else f'{exp.expected_minutes:g} minutes'}")
     load_start = load_average()
     start, cpu = time.perf_counter(), time.process_time()
-    finding = exp.run(config, out, progress)
+    finding = exp.run(config, folder, progress)
     seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     for table, rows in finding.tables.items():
         if rows:
-            write_csv(out / f"{table}.csv", rows)
-    meta = {"experiment": name, "title": exp.title, "reproduces": exp.reproduces, "quick": quick,
+            write_csv(folder / f"{table}.csv", rows)
+    meta = {"experiment": exp.name, "title": exp.title, "reproduces": exp.reproduces, "quick": quick,
             "seconds": seconds, "cpu_seconds": cpu, "cpu_count": os.cpu_count(),
             "load_average_start": load_start, "load_average_end": load_average(),
             "threads": {v: os.environ.get(v) for v in _THREAD_VARIABLES}, "shspec_version": __version__,
             "numpy": np.__version__, "python": platform.python_version(), "machine": platform.platform(),
             "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"), "numbers": finding.numbers}
-    (out / "meta.json").write_text(json.dumps(meta, indent=1, default=float))
-    text = experiment_markdown(name, exp.title, exp.reproduces, quick, seconds, __version__, finding.summary,
+    (folder / "meta.json").write_text(json.dumps(meta, indent=1, default=float))
+    text = experiment_markdown(exp.name, exp.title, exp.reproduces, quick, seconds, __version__, finding.summary,
                                finding.figures, finding.tables, config, cpu_seconds=cpu,
                                load=(meta["load_average_start"], meta["load_average_end"]))
-    report = out / "report.md"
-    report.write_text(text)
+    (folder / "report.md").write_text(text)
     if progress:
-        print(f"{name}: done in {seconds:.1f} s; report {report}")
-    return report
+        print(f"{exp.name}: done in {seconds:.1f} s")

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.atomic import save_figure as atomic_save_figure
 from ..errors import InvalidArgumentError
 from ..mesh import TriangleMesh, load_mesh
 from ..sphere.factor import ConformalFactor
@@ -67,5 +68,7 @@ def save_figure(fig, path) -> None:
     import matplotlib.pyplot as plt
 
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        atomic_save_figure(fig, path, dpi=110)  # a failure names the figure
+    finally:
+        plt.close(fig)

@@ -17,6 +17,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from ..core.atomic import check_complete
 from ..core.checks import real_array
 from ..errors import InvalidArgumentError, NotPositiveError
 from ..galerkin.log_model import LogHarmonicModel
@@ -73,6 +74,8 @@ def read_parameters(path, what: str = "parameters") -> tuple[np.ndarray, str]:
         If the file cannot be read, or holds no value.
     """
     path = Path(path)
+    if path.suffix in (".h5", ".json"):  # a fit's outputs
+        check_complete(path)
     try:
         if path.suffix == ".h5":
             with h5py.File(path, "r") as f:

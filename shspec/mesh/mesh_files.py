@@ -107,8 +107,15 @@ def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None
         raise
 
 
-def save_mesh(mesh: TriangleMesh, path) -> Path:
+def save_mesh(mesh: TriangleMesh, path, *, file_type: str | None = None) -> Path:
     """Write ``mesh`` to ``path``; the format follows the suffix (``.obj``, ``.ply``, ``.off``, ``.stl``).
+
+    Parameters
+    ----------
+    mesh : TriangleMesh
+    path : path-like
+    file_type : str, optional
+        The format (one of :data:`MESH_FORMATS`) when the suffix of ``path`` does not say it (a temporary file).
 
     Returns
     -------
@@ -134,13 +141,14 @@ def save_mesh(mesh: TriangleMesh, path) -> Path:
     if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
         raise InvalidArgumentError(f"a mesh file is a non-empty path, got {path!r}")
     path = Path(path)
-    _check_suffix(path)
+    suffix = path.suffix.lower() if file_type is None else "." + str(file_type).lower().lstrip(".")
+    _check_suffix(path.with_suffix(suffix))
     tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
     with atomic_output(path) as tmp:
         # OBJ: positions and faces only, at full double precision, so that a round trip is exact.
-        if path.suffix.lower() == ".obj":
+        if suffix == ".obj":
             tmp.write_text(trimesh.exchange.obj.export_obj(tm, include_normals=False, include_color=False,
                                                             include_texture=False, digits=17))
         else:
-            tm.export(tmp, file_type=path.suffix.lower().lstrip("."))
+            tm.export(tmp, file_type=suffix.lstrip("."))
     return path

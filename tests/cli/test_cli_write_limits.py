@@ -38,6 +38,7 @@ def previous(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_a_result_file_over_the_size_limit_is_one_output_error_not_a_crash(previous, tmp_path):
     out = tmp_path / "fit"
     done = _shspec(*FIT, "--out", str(out), fsize=8192)
@@ -47,6 +48,7 @@ def test_a_result_file_over_the_size_limit_is_one_output_error_not_a_crash(previ
     assert set(_files(out)) <= {".shspec-fit.lock"}  # no result.h5.*.tmp: only the (released) lock of the fit
 
 
+@pytest.mark.slow
 def test_a_fit_over_the_size_limit_leaves_the_previous_fits_folder_as_it_was(previous, tmp_path):
     out = tmp_path / "fit"
     shutil.copytree(previous, out)
@@ -57,3 +59,34 @@ def test_a_fit_over_the_size_limit_leaves_the_previous_fits_folder_as_it_was(pre
     assert done.returncode == 1, done.stderr
     assert "cannot write" in done.stderr and ".png" in done.stderr and "as they were" in done.stderr
     assert _files(out) == before
+
+
+def test_an_embedding_over_the_size_limit_leaves_the_previous_mesh_and_summary(tmp_path):
+    from shspec.mesh import icosphere, save_mesh
+
+    sphere = save_mesh(icosphere(2), tmp_path / "sphere.obj")
+    (tmp_path / "factors.txt").write_text("4\n" * 162)
+    out = tmp_path / "out"
+    out.mkdir()
+    embed = ["embed", str(sphere), str(tmp_path / "factors.txt"), "--out", str(out / "e.obj"), "--summary",
+             str(out / "e.json")]
+    assert _shspec(*embed).returncode == 0
+    before = _files(out)
+    (tmp_path / "factors.txt").write_text("9\n" * 162)
+    # the summary fits under the limit, the mesh does not: it was the new summary beside the old mesh
+    done = _shspec(*embed, fsize=4096)
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr and "cannot write" in done.stderr and "e.obj" in done.stderr
+    assert _files(out) == before  # no temporary file either
+
+
+@pytest.mark.slow
+def test_an_experiment_over_the_size_limit_leaves_the_previous_runs_folder(tmp_path):
+    run = ["experiment", "sh-convergence", "--quick", "--out", str(tmp_path / "run")]
+    assert _shspec(*run).returncode == 0
+    before = _files(tmp_path / "run")
+    # config.json fits under the limit, the figures do not: it was the new config beside the old figures
+    done = _shspec(*run, fsize=8192)
+    assert done.returncode == 1, done.stderr
+    assert "Traceback" not in done.stderr and "cannot write" in done.stderr and ".png" in done.stderr
+    assert _files(tmp_path / "run") == before
