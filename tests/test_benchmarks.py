@@ -16,6 +16,7 @@ def _runner(*args):
                           timeout=300)
 
 
+@pytest.mark.slow
 def test_list_names_every_benchmark_with_what_it_measures():
     out = _runner("list")
     assert out.returncode == 0, out.stderr
@@ -24,6 +25,7 @@ def test_list_names_every_benchmark_with_what_it_measures():
     assert all(len(text) > 20 for text in listed.values())
 
 
+@pytest.mark.slow
 def test_an_unknown_name_is_refused_with_the_known_ones():
     out = _runner("run", "bench_nothing")
     assert out.returncode == 2 and "bench_forward" in out.stderr

@@ -126,6 +126,7 @@ def _ended(pid: int) -> bool:
         return True
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not os.path.exists("/proc/self/stat"), reason="reads process states from /proc")
 def test_the_workers_of_a_killed_owner_end_themselves():
     # an owner killed without stopping its pool (SIGKILL, a batch system's SIGTERM) left its workers running their
@@ -145,6 +146,7 @@ def _compile_here() -> int:
     return numba.njit(lambda x: x + 1)(1)  # compiling re-reads numba's configuration from the environment
 
 
+@pytest.mark.slow
 def test_a_worker_compiles_numba_code():
     # with a cold numba cache a pool's worker compiles shspec's kernels at their first call; the worker's one-thread
     # setup once changed NUMBA_NUM_THREADS under numba's running threads, and every compilation raised

@@ -179,6 +179,7 @@ def _scale_case():
 @example(exponent=14, mantissa=2.0, weights="relative")  # the area estimate's lost constant (fixed)
 @given(exponent=st.integers(-300, 300), mantissa=st.floats(1.0, 9.99), weights=st.sampled_from(["relative",
                                                                                                    "absolute"]))
+@pytest.mark.slow
 def test_a_spectrum_at_any_scale_fits_as_at_scale_one(exponent, mantissa, weights):
     # the problem is scale-free (lambda scales as 1/area): lambda * 1e-300 raised SciPy's "A has a NaN entry", and
     # lambda * 1e300 ended at a residual of 4.4e-2 where lambda ends at 1.5e-2

@@ -103,12 +103,14 @@ def _run(code: str, timeout: float, threads: int = 2, layer: str | None = None) 
                           check=False, timeout=timeout)
 
 
+@pytest.mark.slow
 def test_eight_threads_share_a_model_and_get_the_serial_results():
     # 4 threads crashed the interpreter in 2 of 4 runs (pyshtools' MakeGridGLQ from check_positive)
     done = _run(THREADS, timeout=240)
     assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr[-2000:]
 
 
+@pytest.mark.slow
 def test_a_forked_pool_after_a_spectrum_in_the_parent_works():
     # numba's GNU OpenMP layer killed every forked worker ("fork() called from a process already using GNU
     # OpenMP, this is unsafe") and Pool.map waited for ever
@@ -116,6 +118,7 @@ def test_a_forked_pool_after_a_spectrum_in_the_parent_works():
     assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr[-2000:]
 
 
+@pytest.mark.slow
 def test_a_fork_after_gnu_openmp_fails_in_the_child_with_a_clear_error():
     # chosen by the user, GNU OpenMP still cannot survive a fork: the child now raises instead of being killed
     pytest.importorskip("numba.np.ufunc.omppool")
@@ -156,6 +159,7 @@ print("ok" if os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) == 0 else "child 
 """
 
 
+@pytest.mark.slow
 def test_a_fork_while_another_thread_holds_the_locks_does_not_deadlock_the_child():
     done = _run(FORK_WHILE_LOCKED, timeout=60)
     assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr[-2000:]

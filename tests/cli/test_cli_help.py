@@ -51,6 +51,7 @@ def test_embed_writes_its_summary_with_the_inputs(tmp_path, capsys):
     assert summary["success"] is True and "factorizations" in summary
 
 
+@pytest.mark.slow
 def test_precompute_runs_as_a_subcommand_of_the_installed_entry_point(tmp_path):
     out = subprocess.run([sys.executable, "-m", "shspec", "precompute", "list", "--cache-dir", str(tmp_path)],
                          capture_output=True, text=True, timeout=120)

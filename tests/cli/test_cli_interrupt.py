@@ -42,6 +42,7 @@ def test_ctrl_c_during_the_imports_is_one_line_and_status_130(script, trigger):
     assert run.stderr == "shspec: interrupted\n" and run.stdout == ""
 
 
+@pytest.mark.slow
 def test_ctrl_c_while_python_m_shspec_builds_its_parser_is_one_line_and_status_130():
     """``python -m shspec`` imports the package before anything of shspec runs; the commands' modules it imports
     while building the parser are covered."""

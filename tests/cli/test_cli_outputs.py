@@ -38,6 +38,7 @@ def tiny_result():
 
 # item 3 -------------------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_a_fit_into_a_folder_with_a_checkpoint_is_refused_and_says_what_is_there(tmp_path, capsys):
     out = tmp_path / "run"
     assert main(TINY + ["--out", str(out), "--checkpoint-every", "1"]) == 0
@@ -146,6 +147,7 @@ def _long_fit(out, workers: str) -> subprocess.Popen:
     return proc
 
 
+@pytest.mark.slow
 def test_sigterm_to_a_fit_without_checkpoints_writes_the_best_state(tmp_path):
     out = tmp_path / "run"
     proc = _long_fit(out, "1")  # one start after the other (a process pool: the next test)
@@ -158,6 +160,7 @@ def test_sigterm_to_a_fit_without_checkpoints_writes_the_best_state(tmp_path):
     assert (out / "result.h5").is_file()
 
 
+@pytest.mark.slow
 def test_sigterm_to_a_fit_on_a_process_pool_keeps_the_best_states_of_its_running_starts(tmp_path):
     out = tmp_path / "run"
     # SIGTERM to the fit's own process only, as a batch system sends it (Ctrl-C reaches the workers as well, and

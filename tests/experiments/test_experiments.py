@@ -47,6 +47,7 @@ def test_quick_run_writes_its_folder(runs, name):
             assert (folder / f"{table}.csv").is_file()
 
 
+@pytest.mark.slow
 def test_sh_convergence_finds_above_and_below(runs):
     numbers = json.loads((runs / "sh-convergence" / "meta.json").read_text())["numbers"]
     assert numbers["harmonic_from_above"] and numbers["pl_from_below"]

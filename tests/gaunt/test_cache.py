@@ -184,6 +184,7 @@ def _killed_during_save(directory):
     get_table(6, 3, cache_dir=directory)
 
 
+@pytest.mark.slow
 def test_killed_writer_leaves_a_temporary_file_that_is_listed_and_removed(tmp_path):
     from shspec.gaunt.cache import list_temporary_files
 
@@ -273,6 +274,7 @@ def test_a_checkout_uses_its_cache_folder_from_any_subfolder(tmp_path, monkeypat
     assert cache_dir_source() == (tmp_path / "user" / "shspec", "user cache")
 
 
+@pytest.mark.slow
 def test_a_file_size_limit_is_named_before_the_build(tmp_path):
     """Issue 50, item 10: ``ulimit -f`` below the table's file made h5py's flush fail with a RuntimeError, a raw
     traceback from ``shspec precompute`` (and from ``shspec forward`` when it built a table); now the limit is

@@ -28,6 +28,7 @@ def _holder(folder) -> subprocess.Popen:
     return proc
 
 
+@pytest.mark.slow
 def test_a_second_fit_into_a_held_folder_is_refused_at_once_naming_the_holder(tmp_path):
     out = tmp_path / "fit"
     proc = _holder(out)
@@ -41,6 +42,7 @@ def test_a_second_fit_into_a_held_folder_is_refused_at_once_naming_the_holder(tm
         assert held == out and (out / OUTPUT_LOCK).exists()
 
 
+@pytest.mark.slow
 def test_a_folder_held_by_a_killed_fit_is_free(tmp_path):
     out = tmp_path / "fit"
     proc = _holder(out)

@@ -53,6 +53,7 @@ def test_best_start_recovers_spectrum_and_factor(recovered):
     assert al.power_error <= 1e-6
 
 
+@pytest.mark.slow
 def test_mirror_image_is_a_match(recovered):
     truth, _, result = recovered
     direct, mirrored = align(result.factor(), truth), align(result.factor(), mirror_coefficients(truth))
@@ -402,6 +403,7 @@ def test_fit_from_a_given_start_begins_there(small, tmp_path):
         fit(target, model, FitOptions(starts=1), init=np.ones(3))
 
 
+@pytest.mark.slow
 def test_cli_init_continues_from_a_previous_fit(tmp_path):
     first, second = tmp_path / "a", tmp_path / "b"
     args = ["fit", "--target", "blob", "--lmax", "8", "--lmax-factor", "6", "--numeig", "20", "--starts", "1",
@@ -445,6 +447,7 @@ def test_starts_on_an_executor_equal_the_serial_run(small):
             np.testing.assert_array_equal(b.history, a.history)
 
 
+@pytest.mark.slow
 def test_cli_mesh_fit_of_a_real_mesh_writes_its_summary(shared_meshes, tmp_path):
     """The first-hour report: a mesh fit of spot_600 whose degree-4 truth is not positive still writes summary.json
     (the alignment is reported as skipped, the per-vertex comparison is there)."""
@@ -576,6 +579,7 @@ def test_cli_fit_without_numeig_plans_k_and_lmax(tmp_path, capsys):
     assert np.max(np.abs(HarmonicModel(loose.lmax, 3).eigenvalues(truth, plan.numeig)[1:] / accurate - 1)) > 1e-10
 
 
+@pytest.mark.slow
 def test_grid_hop_undoes_a_quarter_turn_when_the_cheap_moves_find_nothing(monkeypatch):
     """A quarter-turn about z of the degree-3 block is no product of the cheap moves (the half-turns about the axes
     and signs).  With the cheap moves exhausted (here: none), a hop without ``hop_grid`` accepts nothing; with it the
@@ -831,6 +835,7 @@ def test_a_fit_stopped_in_a_wrong_basin_reports_its_error_as_unknown():
     assert converged.best.success and converged.identifiability().error_estimate is not None
 
 
+@pytest.mark.slow
 def test_cli_fit_takes_the_truth_from_a_file_and_reports_the_aligned_error(tmp_path, capsys):
     truth = ConformalFactor(random_centred_coefficients(2, 4, 0.15))
     spectrum = tmp_path / "spectrum.txt"

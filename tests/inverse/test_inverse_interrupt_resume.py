@@ -42,6 +42,7 @@ def _same(a, b):
         np.testing.assert_array_equal(x.params, y.params)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("at", [10, 45, 81, 87])  # in a stage, its hops and the final hops
 def test_a_fit_interrupted_anywhere_resumes_to_the_uninterrupted_one(case, tmp_path, monkeypatch, interrupt_fit, at):
     target, model, opts, whole = case

@@ -43,6 +43,7 @@ def _too_large_for(name):
     return savefig
 
 
+@pytest.mark.slow
 def test_a_figure_that_cannot_be_written_leaves_every_file_of_the_previous_fit(tmp_path, tiny_result,
                                                                                 monkeypatch):
     write_result(tiny_result, tmp_path)

@@ -83,6 +83,7 @@ def test_eigenpairs_are_m_orthonormal_with_small_residual(mass):
     assert res.max() < 1e-6 * lam[-1]
 
 
+@pytest.mark.slow
 def test_lanczos_matches_dense():
     mesh = blob(4)
     L, M = cotan_stiffness(mesh), mass_matrix(mesh)
@@ -185,6 +186,7 @@ def test_a_basis_too_small_says_what_converged():
     assert "only" not in str(info.value)
 
 
+@pytest.mark.slow
 def test_a_large_k_on_a_2562_vertex_mesh_is_solved():
     """Issue 50, item 23: k = 900..1100 of 2562 vertices raised ConvergenceError.  Weyl's estimate, which places
     the shift, is far too high that close to the top of a mesh's spectrum, and the Krylov basis filled the space

@@ -46,6 +46,7 @@ def test_a_basis_larger_than_the_memory_is_refused_before_it_is_allocated(small_
         mesh_spectrum(icosphere(4), 40)
 
 
+@pytest.mark.slow
 def test_fit_with_a_large_mesh_target_prints_its_size_and_progress(tmp_path, small_is_large, capsys):
     path = tmp_path / "blob.obj"
     save_mesh(blob(2), path)

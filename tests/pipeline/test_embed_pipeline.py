@@ -142,6 +142,7 @@ def test_render_draws_every_face_coloured_by_the_values():
         render_mesh(blob(1), up="w")
 
 
+@pytest.mark.slow
 def test_recursive_refinement_keeps_residual_and_distance_and_bounds_the_spectral_error():
     """The study's Section 3.2.3 on a 162-vertex blob: fit, re-embed, fit again on the re-embedded surface's sphere."""
     from shspec.fitting import mesh_target

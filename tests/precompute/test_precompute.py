@@ -38,12 +38,14 @@ def test_build_list_verify_rebuild(tmp_path):
     (["--lmax", "ten", "--lmax-factor", "3"], "whole number"),
     (["build"], "needs --lmax and --lmax-factor"),
 ])
+@pytest.mark.slow
 def test_nonsense_arguments(args, message, tmp_path):
     out = run(*args, cache=tmp_path)
     assert out.returncode == 2
     assert message in out.stderr
 
 
+@pytest.mark.slow
 def test_cache_dir_that_is_a_file(tmp_path):
     afile = tmp_path / "afile"
     afile.write_text("")
@@ -51,11 +53,13 @@ def test_cache_dir_that_is_a_file(tmp_path):
     assert out.returncode == 1 and "is a file" in out.stderr
 
 
+@pytest.mark.slow
 def test_verify_without_table(tmp_path):
     out = run("verify", "--lmax", "4", "--lmax-factor", "2", cache=tmp_path)
     assert out.returncode == 1 and "no cached Gaunt table" in out.stderr
 
 
+@pytest.mark.slow
 def test_help_explains():
     out = run("--help")
     assert out.returncode == 0
