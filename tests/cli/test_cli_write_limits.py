@@ -61,6 +61,7 @@ def test_a_fit_over_the_size_limit_leaves_the_previous_fits_folder_as_it_was(pre
     assert _files(out) == before
 
 
+@pytest.mark.slow
 def test_an_embedding_over_the_size_limit_leaves_the_previous_mesh_and_summary(tmp_path):
     from shspec.mesh import icosphere, save_mesh
 

@@ -54,12 +54,14 @@ def test_sh_convergence_finds_above_and_below(runs):
     assert 0.7 < numbers["pl_order_in_vertices"] < 1.3  # O(h^2) = O(1/V)
 
 
+@pytest.mark.slow
 def test_identifiability_reaches_full_rank_modulo_rotations(runs):
     numbers = json.loads((runs / "identifiability" / "meta.json").read_text())["numbers"]
     ranks = list(numbers["ranks"].values())
     assert ranks == sorted(ranks) and ranks[-1] == numbers["max_rank"]
 
 
+@pytest.mark.slow
 def test_identifiability_noisy_fits_follow_the_linear_prediction(runs):
     numbers = json.loads((runs / "identifiability" / "meta.json").read_text())["numbers"]
     assert all(0.5 < r < 2 for r in numbers["noisy_fit_ratio"])
@@ -67,12 +69,14 @@ def test_identifiability_noisy_fits_follow_the_linear_prediction(runs):
     assert errors == sorted(errors)
 
 
+@pytest.mark.slow
 def test_pl_perturbation_error_grows_with_p(runs):
     numbers = json.loads((runs / "pl-perturbation" / "meta.json").read_text())["numbers"]
     assert numbers["spearman_error_vs_p"] > 0.5
     assert (runs / "pl-perturbation" / "results.h5").is_file()
 
 
+@pytest.mark.slow
 def test_sh_inverse_reports_every_fit(runs):
     numbers = json.loads((runs / "sh-inverse" / "meta.json").read_text())["numbers"]
     config = json.loads((runs / "sh-inverse" / "config.json").read_text())
@@ -114,6 +118,7 @@ class _Checker(HTMLParser):
             self.errors.append(tag)
 
 
+@pytest.mark.slow
 def test_report_is_well_formed_and_links_existing_files(runs, tmp_path):
     page = build_report([runs], tmp_path / "sub" / "report.html")
     checker = _Checker()
@@ -151,6 +156,7 @@ def test_config_override_and_errors(tmp_path):
             run_experiment("pl-basin", tmp_path / "basin", config_path=bad, quick=True, progress=False)
 
 
+@pytest.mark.slow
 def test_report_tables_scroll_instead_of_overflowing(runs, tmp_path):
     import re
 
@@ -160,6 +166,7 @@ def test_report_tables_scroll_instead_of_overflowing(runs, tmp_path):
     assert re.search(r"\.wide\{[^}]*overflow-x:auto", page)
 
 
+@pytest.mark.slow
 def test_pl_basin_converges_quadratically_next_to_the_truth(runs):
     with open(runs / "pl-basin" / "pl_basin.csv") as fh:
         rows = list(csv.DictReader(fh))
@@ -176,6 +183,7 @@ def test_pl_basin_converges_quadratically_next_to_the_truth(runs):
     assert 1e-3 * 1e-2 ** 2 < float(walk["log_rms_determined"]) < 0.1 * 1e-2
 
 
+@pytest.mark.slow
 def test_sh_perturbation_sweeps_p_until_the_harmonic_basis_fails(runs):
     folder = runs / "sh-perturbation"
     config = json.loads((folder / "config.json").read_text())
