@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
-from ..core.atomic import atomic_output, save_figure, write_hdf5, write_text
+from ..core.atomic import atomic_output, atomic_outputs, save_figure, write_hdf5, write_text
 from ._common import CACHE_DIR_HELP
 from .help_format import HelpFormatter
 from ..errors import BandLimitError, InvalidArgumentError, TruncationWarning
@@ -198,7 +198,6 @@ def run_convergence(args) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-
     lmax_values = _int_list(args.lmax_values, "--lmax-values")
     rho = parse_rho(args.rho, args.lmax_factor)
     out = ensure_directory(args.out)
@@ -210,29 +209,36 @@ def run_convergence(args) -> int:
         pl = pl_spectrum_of_factor(rho, args.numeig, args.pl_subdivisions)
         studies[0].pl_eigenvalues[f"PL icosphere({args.pl_subdivisions})"] = pl
     summary = {"rho": args.rho, "numeig": args.numeig, "studies": []}
-    for study in studies:
-        rows = study.table()
-        write_csv(out / f"convergence_{study.parameter}.csv", rows)
-        rates = study.rates()
-        summary["studies"].append({
-            "parameter": study.parameter, "values": study.values.tolist(), "fixed": study.fixed,
-            "eigenvalues": study.eigenvalues.tolist(), "rows": rows,
-            "rates_per_group": {f"l{l}": (None if np.isnan(r) else float(r)) for (l, _), r in zip(study.groups(),
-                                                                                             rates)},
-            "pl_eigenvalues": {k: v.tolist() for k, v in study.pl_eigenvalues.items()}})
-        fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
-        study.plot(axes[0])
-        study.plot_spectra(axes[1])
-        axes[0].set_title(f"{rho.name}: convergence in {study.parameter}")
-        fig.tight_layout()
-        try:
-            save_figure(fig, out / f"convergence_{study.parameter}.png", dpi=120)
-        finally:
-            plt.close(fig)
-        finite = rates[~np.isnan(rates)]
-        print(f"{study.parameter}: values {study.values.tolist()}; largest change at the coarsest "
-              f"{rows[0]['max_relative_change']:.2e}, next-to-finest {rows[-2]['max_relative_change']:.2e}; "
-              f"median exponential rate {np.median(finite) if finite.size else float('nan'):.3f} per degree")
-    write_text(out / "convergence.json", json.dumps(summary, indent=1))
+    # one unit: a failed write leaves the folder's previous study whole (shspec.core.atomic.atomic_outputs)
+    with atomic_outputs(out) as files:
+        for study in studies:
+            _write_study(study, rho, files, summary, plt)
+        write_text(files.path("convergence.json"), json.dumps(summary, indent=1))
     print(f"wrote {out}/convergence.json, CSV and PNG files")
     return 0
+
+
+def _write_study(study, rho, files, summary: dict, plt) -> None:
+    """Write one convergence study's table and figure, add it to ``summary`` and print its line."""
+    rows = study.table()
+    write_csv(files.path(f"convergence_{study.parameter}.csv"), rows)
+    rates = study.rates()
+    summary["studies"].append({
+        "parameter": study.parameter, "values": study.values.tolist(), "fixed": study.fixed,
+        "eigenvalues": study.eigenvalues.tolist(), "rows": rows,
+        "rates_per_group": {f"l{l}": (None if np.isnan(r) else float(r)) for (l, _), r in zip(study.groups(),
+                                                                                         rates)},
+        "pl_eigenvalues": {k: v.tolist() for k, v in study.pl_eigenvalues.items()}})
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
+    study.plot(axes[0])
+    study.plot_spectra(axes[1])
+    axes[0].set_title(f"{rho.name}: convergence in {study.parameter}")
+    fig.tight_layout()
+    try:
+        save_figure(fig, files.path(f"convergence_{study.parameter}.png"), dpi=120)
+    finally:
+        plt.close(fig)
+    finite = rates[~np.isnan(rates)]
+    print(f"{study.parameter}: values {study.values.tolist()}; largest change at the coarsest "
+          f"{rows[0]['max_relative_change']:.2e}, next-to-finest {rows[-2]['max_relative_change']:.2e}; "
+          f"median exponential rate {np.median(finite) if finite.size else float('nan'):.3f} per degree")

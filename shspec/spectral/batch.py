@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from ..core.atomic import write_text
+from ..core.atomic import atomic_outputs, write_text
 from ..core.checks import check_int
 from ..errors import InvalidArgumentError
 from ..core.outputs import ensure_directory, write_csv
@@ -194,7 +194,9 @@ def run_batch(paths, out, numeig: int, *, mass: str = "lumped", descriptors: boo
         Mesh files and folders (:func:`collect_meshes`).
     out : str or Path
         Output folder (created): STEM.eigenvalues.txt per mesh (and with ``descriptors`` STEM.shapedna.txt,
-        STEM.heat_trace.txt, STEM.hks.txt; with ``topology`` STEM.topology.json) and :data:`TABLE_NAME`.
+        STEM.heat_trace.txt, STEM.hks.txt; with ``topology`` STEM.topology.json) and :data:`TABLE_NAME`.  The files
+        are one unit (:func:`shspec.core.atomic.atomic_outputs`): they replace those of an earlier batch in ``out``
+        only when every mesh is done and written, so that a failure leaves ``out`` as it was.
     numeig : int
         Eigenvalues per mesh.
     mass, descriptors, topology
@@ -217,8 +219,8 @@ def run_batch(paths, out, numeig: int, *, mass: str = "lumped", descriptors: boo
     >>> os.makedirs("batch_in", exist_ok=True)
     >>> _ = save_mesh(icosphere(1), "batch_in/a.obj"), save_mesh(icosphere(2), "batch_in/b.obj")
     >>> results = run_batch(["batch_in"], "batch_out", 5, progress=False)
-    >>> len(results), sorted(os.listdir("batch_out"))
-    (2, ['a.eigenvalues.txt', 'b.eigenvalues.txt', 'spectra.csv'])
+    >>> len(results), sorted(os.listdir("batch_out"))       # with the list of the run's outputs
+    (2, ['.shspec-outputs.json', 'a.eigenvalues.txt', 'b.eigenvalues.txt', 'spectra.csv'])
     """
     meshes = collect_meshes(paths)
     numeig = check_int(numeig, "numeig", minimum=1)
@@ -229,13 +231,13 @@ def run_batch(paths, out, numeig: int, *, mass: str = "lumped", descriptors: boo
     futures = {executor.submit(mesh_job, str(p), numeig, mass, descriptors=descriptors, topology=topology): i
                for i, p in enumerate(meshes)}
     results = [None] * len(meshes)
-    with tqdm(total=len(meshes), desc="mesh spectra", unit="mesh", disable=not progress) as bar:
+    with atomic_outputs(out) as files, tqdm(total=len(meshes), desc="mesh spectra", unit="mesh",
+                                            disable=not progress) as bar:
         for future in as_completed(futures):
             res = future.result()
-            _write(out, res, descriptors)
+            _write(files.folder, res, descriptors)
             results[futures[future]] = res
             bar.update()
-    rows = [_row(r) for r in results]
-    fields = list(max(rows, key=len).keys())
-    write_csv(out / TABLE_NAME, rows, fields)
+        rows = [_row(r) for r in results]
+        write_csv(files.folder / TABLE_NAME, rows, list(max(rows, key=len).keys()))
     return results

@@ -82,3 +82,22 @@ def test_convergence_cli(tmp_path):
     assert [s["parameter"] for s in summary["studies"]] == ["lmax", "lmax_factor"]
     assert (tmp_path / "convergence_lmax.png").stat().st_size > 10000
     assert (tmp_path / "convergence_lmax.csv").read_text().startswith("lmax,max_relative_change")
+
+
+def test_a_convergence_study_that_cannot_write_a_figure_leaves_the_previous_folder(tmp_path, monkeypatch, capsys):
+    """The study's files are one unit (issue 50): a full disk on the figure kept the new table beside the old figure."""
+    import errno
+
+    from matplotlib.figure import Figure
+
+    command = ["convergence", "--lmax-values", "4,6", "--numeig", "9", "--out", str(tmp_path)]
+    assert main(command) == 0
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+
+    def full(self, path, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr(Figure, "savefig", full)
+    assert main([*command[:2], "4,8", *command[3:]]) == 1
+    assert "convergence_lmax.png: the disk is full" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before

@@ -156,3 +156,17 @@ def test_fit_refuses_a_torus_spectrum(tmp_path, capsys):
     assert "not 0" not in capsys.readouterr().err
     main(["fit", "--target", f"spectrum:{_sphere_file(tmp_path)}", *args[3:]])
     assert "not 0" not in capsys.readouterr().err
+
+
+def test_a_batch_that_fails_on_a_mesh_leaves_the_previous_batchs_folder(mesh_dir, tmp_path):
+    """A batch's files are one unit (issue 50): a mesh that fails after others were written left them beside the
+    previous batch's table."""
+    run_batch([mesh_dir], tmp_path / "out", 10, progress=False)
+    before = {p.name: p.read_bytes() for p in (tmp_path / "out").iterdir()}
+    (mesh_dir / "torus.off").write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")  # not closed
+    with pytest.raises(InvalidArgumentError):
+        run_batch([mesh_dir], tmp_path / "out", 12, progress=False)
+    assert {p.name: p.read_bytes() for p in (tmp_path / "out").iterdir()} == before
+    run_batch([mesh_dir / "blob.obj"], tmp_path / "out", 12, progress=False)  # a smaller batch replaces it all
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [".shspec-outputs.json", "blob.eigenvalues.txt",
+                                                                    TABLE_NAME]
