@@ -5,7 +5,8 @@ request the heat kernel signature and the heat-trace topology); it returns array
 workers of a remote Dask cluster need no access to the output folder (they do read the mesh files: give paths
 they can see).  :func:`run_batch` submits one job per mesh
 to an executor (:func:`shspec.core.parallel.make_executor`), writes each mesh's files as its result arrives (tqdm
-progress), and one CSV table with a row per mesh in the order given.
+progress) into a staging folder, and one CSV table with a row per mesh in the order given; the files of the batch
+replace those of the previous one in the output folder when all are written (one unit: a failure leaves it as it was).
 """
 
 from __future__ import annotations
