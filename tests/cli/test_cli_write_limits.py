@@ -83,11 +83,15 @@ def test_an_embedding_over_the_size_limit_leaves_the_previous_mesh_and_summary(t
 
 @pytest.mark.slow
 def test_an_experiment_over_the_size_limit_leaves_the_previous_runs_folder(tmp_path):
-    run = ["experiment", "sh-convergence", "--quick", "--out", str(tmp_path / "run")]
-    assert _shspec(*run).returncode == 0
-    before = _files(tmp_path / "run")
+    previous = tmp_path / "run"  # what an earlier run left (its contents do not matter, only that they stay)
+    previous.mkdir()
+    for name in ("config.json", "meta.json", "report.md", "convergence.png", ".shspec-outputs.json"):
+        (previous / name).write_text(f"{name} of an earlier run")
+    before = _files(previous)
+    # the Gaunt table the quick study needs, written without a limit
+    assert _shspec("precompute", "--lmax", "16", "--lmax-factor", "6", "--quiet").returncode == 0
     # config.json fits under the limit, the figures do not: it was the new config beside the old figures
-    done = _shspec(*run, fsize=8192)
+    done = _shspec("experiment", "sh-convergence", "--quick", "--out", str(previous), fsize=8192)
     assert done.returncode == 1, done.stderr
     assert "Traceback" not in done.stderr and "cannot write" in done.stderr and ".png" in done.stderr
-    assert _files(tmp_path / "run") == before
+    assert _files(previous) == before
