@@ -21,7 +21,9 @@ A set of files.  :func:`atomic_outputs` writes the outputs of one run (a fit's r
 as one unit: every file into a hidden staging folder first, then all of them renamed into place, so that a failure
 while writing (a full disk, a file-size limit) leaves every file of the previous run as it was, never a folder whose
 files come from two runs.  The few renames run under a marker file, :data:`INCOMPLETE`, which stays only if they
-are cut short (a SIGKILL between two of them) and says that the folder mixes two runs.
+are cut short (a SIGKILL between two of them) and says that the folder mixes two runs; :func:`check_complete` refuses
+to read such a folder back.  Files of one run in folders of the user's choosing (a mesh and its summary) go through
+:func:`atomic_output_files`: all are written and synced before any is renamed.
 
 Files are created with the mode ``mode & ~umask`` (0644 under the usual umask 022), like any file a program
 writes, not with the 0600 of :func:`tempfile.mkstemp`, so that a shared folder stays readable to its users.
@@ -48,8 +50,8 @@ import h5py
 from ..errors import InvalidArgumentError, OutputError, ShspecError
 
 __all__ = ["TEMP_SUFFIX", "INCOMPLETE", "MANIFEST", "atomic_path", "atomic_paths", "atomic_hdf5", "atomic_output",
-           "atomic_output_files", "atomic_outputs",
-           "OutputSet", "check_complete", "write_text", "write_hdf5", "save_figure", "write_failure", "temporary_files", "umask_mode"]
+           "atomic_output_files", "atomic_outputs", "OutputSet", "check_complete", "write_text", "write_hdf5",
+           "save_figure", "write_failure", "temporary_files", "umask_mode"]
 
 TEMP_SUFFIX = ".tmp"
 
