@@ -34,8 +34,8 @@ def test_the_run_that_applies_has_as_many_eigenvalues_per_coefficient_or_fewer(m
     measured, said = expectation(6, 60)
     assert measured is None and said.endswith("(60 eigenvalues; the many-law benchmark measured degree 6 with 74 "
                                               "and more)")
-    assert expectation(8, 202) == (None, "expected success and time: unknown (the many-law benchmark has not "
-                                         "measured degree 8)")
+    assert expectation(10, 302) == (None, "expected success and time: unknown (the many-law benchmark has not "
+                                          "measured degree 10)")
     assert expectation(6, 122, "a given start") == (None, "expected success and time: unknown (a given start)")
     assert "22 of 24 recovered within 120 s" in expectation(6, 122)[1]
 
