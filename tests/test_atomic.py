@@ -109,3 +109,12 @@ def test_outputs_of_a_folder_marked_incomplete_are_refused(tmp_path):
     for path in (tmp_path, tmp_path / "summary.json"):
         with pytest.raises(InvalidArgumentError, match="marked INCOMPLETE.*two runs"):
             check_complete(path)
+
+
+def test_a_folder_that_cannot_be_written_is_named_before_the_work(tmp_path):
+    from shspec.core.atomic import check_writable
+
+    check_writable(tmp_path / "e.obj")
+    assert list(tmp_path.iterdir()) == []  # the probe leaves nothing
+    with pytest.raises(OutputError, match=r"cannot write .*missing/e\.obj: .*; nothing was written"):
+        check_writable(tmp_path / "missing" / "e.obj")

@@ -6,7 +6,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..core.atomic import atomic_output_files
+from ..core.atomic import atomic_output_files, check_writable
 from ..embed.embed import EmbedOptions, embed
 from ..errors import InvalidArgumentError, OutputError
 from ..pipeline.validation import ValidationOptions, validate_target, write_report
@@ -60,8 +60,8 @@ def _embed(args) -> int:
     if args.summary is not None and args.summary.resolve() == args.out.resolve():
         raise InvalidArgumentError(f"--summary and --out are the same file {args.out}")
     for path in (args.out, args.summary):
-        if path is not None and not path.parent.is_dir():
-            raise OutputError(f"cannot write {path}: the folder {path.parent} does not exist")
+        if path is not None:
+            check_writable(path)
     sphere = load_mesh(args.sphere, validate=False)
     factors = load_numbers(args.factors, "conformal factors of the vertices")
     res = embed(sphere, factors, EmbedOptions(steps=args.steps, pressure=args.pressure, smoothing=args.smoothing))

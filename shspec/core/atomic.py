@@ -50,8 +50,8 @@ import h5py
 from ..errors import InvalidArgumentError, OutputError, ShspecError
 
 __all__ = ["TEMP_SUFFIX", "INCOMPLETE", "MANIFEST", "atomic_path", "atomic_paths", "atomic_hdf5", "atomic_output",
-           "atomic_output_files", "atomic_outputs", "OutputSet", "check_complete", "write_text", "write_hdf5",
-           "save_figure", "write_failure", "temporary_files", "umask_mode"]
+           "atomic_output_files", "atomic_outputs", "OutputSet", "check_complete", "check_writable", "write_text",
+           "write_hdf5", "save_figure", "write_failure", "temporary_files", "umask_mode"]
 
 TEMP_SUFFIX = ".tmp"
 
@@ -487,6 +487,23 @@ def _swap_in(outputs: OutputSet, replaces: set) -> None:
         raise OutputError(f"cannot put the outputs of this run into {directory}: {_reason(exc)}; the folder now "
                           f"mixes two runs, as its file {INCOMPLETE} says: run again") from exc
     _fsync_dir(directory)
+
+
+def check_writable(path: str | os.PathLike, *, error: type[OSError] = OutputError) -> None:
+    """Fail now if no file can be created beside ``path`` (a missing, read-only or full folder), before a
+    computation whose result would otherwise be lost at the write.
+
+    Raises
+    ------
+    OutputError (or ``error``)
+        Naming ``path`` and the reason, as a failed write would (:func:`write_failure`).
+    """
+    path = Path(path)
+    try:
+        with tempfile.TemporaryFile(dir=path.parent):
+            pass
+    except OSError as exc:
+        raise write_failure(path, exc, existed=path.exists(), error=error) from exc
 
 
 def check_complete(path: str | os.PathLike) -> None:
