@@ -1,4 +1,5 @@
-"""The precompute command line, run as a user would run it."""
+"""The precompute command line: a build, list, verify and rebuild run as a user would run it (a new process); the checks
+of its messages call the same `main` in this process."""
 
 import os
 import subprocess
@@ -13,6 +14,24 @@ def run(*args, cache=None):
         env["SHSPEC_CACHE"] = str(cache)
     return subprocess.run([sys.executable, "-m", "precompute", *args], capture_output=True, text=True, env=env,
                           timeout=300)
+
+
+@pytest.fixture
+def here(monkeypatch, capsys):
+    """``run`` in this process (the same ``main`` as ``python -m precompute``, without 2-3 s of start-up each), for
+    the checks of messages."""
+    from precompute.__main__ import main
+
+    def run_here(*args, cache=None):
+        if cache is not None:
+            monkeypatch.setenv("SHSPEC_CACHE", str(cache))
+        try:
+            code = main(list(args))
+        except SystemExit as exc:  # argparse's errors and --help
+            code = exc.code
+        out = capsys.readouterr()
+        return subprocess.CompletedProcess(args, code, out.out, out.err)
+    return run_here
 
 
 @pytest.mark.slow
@@ -38,30 +57,26 @@ def test_build_list_verify_rebuild(tmp_path):
     (["--lmax", "ten", "--lmax-factor", "3"], "whole number"),
     (["build"], "needs --lmax and --lmax-factor"),
 ])
-@pytest.mark.slow
-def test_nonsense_arguments(args, message, tmp_path):
-    out = run(*args, cache=tmp_path)
+def test_nonsense_arguments(args, message, tmp_path, here):
+    out = here(*args, cache=tmp_path)
     assert out.returncode == 2
     assert message in out.stderr
 
 
-@pytest.mark.slow
-def test_cache_dir_that_is_a_file(tmp_path):
+def test_cache_dir_that_is_a_file(tmp_path, here):
     afile = tmp_path / "afile"
     afile.write_text("")
-    out = run("--lmax", "4", "--lmax-factor", "2", "--cache-dir", str(afile))
+    out = here("--lmax", "4", "--lmax-factor", "2", "--cache-dir", str(afile))
     assert out.returncode == 1 and "is a file" in out.stderr
 
 
-@pytest.mark.slow
-def test_verify_without_table(tmp_path):
-    out = run("verify", "--lmax", "4", "--lmax-factor", "2", cache=tmp_path)
+def test_verify_without_table(tmp_path, here):
+    out = here("verify", "--lmax", "4", "--lmax-factor", "2", cache=tmp_path)
     assert out.returncode == 1 and "no cached Gaunt table" in out.stderr
 
 
-@pytest.mark.slow
-def test_help_explains():
-    out = run("--help")
+def test_help_explains(here):
+    out = here("--help")
     assert out.returncode == 0
     for word in ("--lmax", "--lmax-factor", "--cache-dir", "--force", "verify", "SHSPEC_CACHE"):
         assert word in out.stdout
@@ -85,17 +100,16 @@ def test_interrupted_rebuild_keeps_the_table_and_prints_one_line(tmp_path, monke
     assert cache.table_path(6, 3, tmp_path).read_bytes() == before
 
 
-@pytest.mark.slow
-def test_list_shows_rule_stale_temporary_and_refuses_a_file(tmp_path):
+def test_list_shows_rule_stale_temporary_and_refuses_a_file(tmp_path, here):
     (tmp_path / "gaunt_Lb6_La3.h5.abcd1234.tmp").write_bytes(b"\0" * 100)
-    out = run("list", cache=tmp_path)
+    out = here("list", cache=tmp_path)
     assert out.returncode == 0
     assert "SHSPEC_CACHE" in out.stdout and "gaunt_Lb6_La3.h5.abcd1234.tmp" in out.stdout and "stale" in out.stdout
-    clean = run("clean", cache=tmp_path)
+    clean = here("clean", cache=tmp_path)
     assert clean.returncode == 0 and not list(tmp_path.glob("*.tmp"))
     afile = tmp_path / "afile"
     afile.write_text("")
-    out = run("list", "--cache-dir", str(afile))
+    out = here("list", "--cache-dir", str(afile))
     assert out.returncode == 1 and "is a file" in out.stderr
 
 
