@@ -10,7 +10,7 @@ from ..core.atomic import atomic_output_files, check_writable
 from ..embed.embed import EmbedOptions, embed
 from ..errors import InvalidArgumentError, OutputError
 from ..pipeline.validation import ValidationOptions, validate_target, write_report
-from ..mesh.mesh_files import MESH_FORMATS, load_mesh, save_mesh
+from ..mesh.mesh_files import load_mesh, mesh_format, save_mesh
 from ._common import load_numbers
 
 
@@ -54,9 +54,7 @@ def register(subparsers) -> None:
 
 def _embed(args) -> int:
     # checked before the embedding, whose result would otherwise be lost
-    if args.out.suffix.lower() not in MESH_FORMATS:
-        raise InvalidArgumentError(f"--out {args.out}: unsupported mesh format {args.out.suffix!r}; use one of "
-                                   f"{MESH_FORMATS}")
+    mesh_format(args.out)
     if args.summary is not None and args.summary.resolve() == args.out.resolve():
         raise InvalidArgumentError(f"--summary and --out are the same file {args.out}")
     for path in (args.out, args.summary):

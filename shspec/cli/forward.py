@@ -196,8 +196,6 @@ def run_convergence(args) -> int:
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     lmax_values = _int_list(args.lmax_values, "--lmax-values")
     rho = parse_rho(args.rho, args.lmax_factor)
     out = ensure_directory(args.out)
@@ -208,27 +206,23 @@ def run_convergence(args) -> int:
     if args.pl_subdivisions is not None:
         pl = pl_spectrum_of_factor(rho, args.numeig, args.pl_subdivisions)
         studies[0].pl_eigenvalues[f"PL icosphere({args.pl_subdivisions})"] = pl
-    summary = {"rho": args.rho, "numeig": args.numeig, "studies": []}
     # one unit: a failed write leaves the folder's previous study whole (shspec.core.atomic.atomic_outputs)
     with atomic_outputs(out) as files:
-        for study in studies:
-            _write_study(study, rho, files, summary, plt)
+        summary = {"rho": args.rho, "numeig": args.numeig,
+                   "studies": [_write_study(study, rho, files) for study in studies]}
         write_text(files.path("convergence.json"), json.dumps(summary, indent=1))
     print(f"wrote {out}/convergence.json, CSV and PNG files")
     return 0
 
 
-def _write_study(study, rho, files, summary: dict, plt) -> None:
-    """Write one convergence study's table and figure, add it to ``summary`` and print its line."""
+def _write_study(study, rho, files) -> dict:
+    """Write one convergence study's table and figure into ``files`` and print its line; returns its entry of
+    convergence.json."""
+    import matplotlib.pyplot as plt
+
     rows = study.table()
     write_csv(files.path(f"convergence_{study.parameter}.csv"), rows)
     rates = study.rates()
-    summary["studies"].append({
-        "parameter": study.parameter, "values": study.values.tolist(), "fixed": study.fixed,
-        "eigenvalues": study.eigenvalues.tolist(), "rows": rows,
-        "rates_per_group": {f"l{l}": (None if np.isnan(r) else float(r)) for (l, _), r in zip(study.groups(),
-                                                                                         rates)},
-        "pl_eigenvalues": {k: v.tolist() for k, v in study.pl_eigenvalues.items()}})
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
     study.plot(axes[0])
     study.plot_spectra(axes[1])
@@ -242,3 +236,8 @@ def _write_study(study, rho, files, summary: dict, plt) -> None:
     print(f"{study.parameter}: values {study.values.tolist()}; largest change at the coarsest "
           f"{rows[0]['max_relative_change']:.2e}, next-to-finest {rows[-2]['max_relative_change']:.2e}; "
           f"median exponential rate {np.median(finite) if finite.size else float('nan'):.3f} per degree")
+    return {"parameter": study.parameter, "values": study.values.tolist(), "fixed": study.fixed,
+            "eigenvalues": study.eigenvalues.tolist(), "rows": rows,
+            "rates_per_group": {f"l{l}": (None if np.isnan(r) else float(r)) for (l, _), r in zip(study.groups(),
+                                                                                             rates)},
+            "pl_eigenvalues": {k: v.tolist() for k, v in study.pl_eigenvalues.items()}}

@@ -14,15 +14,31 @@ from .builtin import BUILTIN_MESHES, resolve_mesh_path
 from .triangle_mesh import TriangleMesh
 from .validate import validate_mesh
 
-__all__ = ["load_mesh", "save_mesh", "MESH_FORMATS"]
+__all__ = ["load_mesh", "save_mesh", "mesh_format", "MESH_FORMATS"]
 
 #: File suffixes accepted by :func:`load_mesh` and :func:`save_mesh`.
 MESH_FORMATS = (".obj", ".ply", ".off", ".stl")
 
 
-def _check_suffix(path: Path) -> None:
-    if path.suffix.lower() not in MESH_FORMATS:
-        raise InvalidArgumentError(f"{path}: unsupported mesh format {path.suffix!r}; use one of {MESH_FORMATS}")
+def mesh_format(path, file_type: str | None = None) -> str:
+    """The format of the mesh file ``path``: ``file_type`` if given, else its suffix (lower case, with the dot).
+
+    Raises
+    ------
+    InvalidArgumentError
+        If it is not one of :data:`MESH_FORMATS`.
+
+    Examples
+    --------
+    >>> from shspec.mesh.mesh_files import mesh_format
+    >>> mesh_format("Bunny.OBJ"), mesh_format("bunny.obj.tmp", "ply")
+    ('.obj', '.ply')
+    """
+    path = Path(path)
+    suffix = path.suffix.lower() if file_type is None else "." + str(file_type).lower().lstrip(".")
+    if suffix not in MESH_FORMATS:
+        raise InvalidArgumentError(f"{path}: unsupported mesh format {suffix!r}; use one of {MESH_FORMATS}")
+    return suffix
 
 
 def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None,
@@ -74,7 +90,7 @@ def load_mesh(path, *, validate: bool = True, merge_vertices: bool | None = None
     if not path.suffix:
         raise InvalidArgumentError(f"{path}: neither a mesh file ({', '.join(MESH_FORMATS)}) nor a mesh shipped with "
                                    f"shspec ({', '.join(BUILTIN_MESHES)})")
-    _check_suffix(path)
+    mesh_format(path)
     if not path.is_file():
         raise MeshError(f"{path}: no such file")
     process = path.suffix.lower() == ".stl" if merge_vertices is None else bool(merge_vertices)
@@ -141,8 +157,7 @@ def save_mesh(mesh: TriangleMesh, path, *, file_type: str | None = None) -> Path
     if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
         raise InvalidArgumentError(f"a mesh file is a non-empty path, got {path!r}")
     path = Path(path)
-    suffix = path.suffix.lower() if file_type is None else "." + str(file_type).lower().lstrip(".")
-    _check_suffix(path.with_suffix(suffix))
+    suffix = mesh_format(path, file_type)
     tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
     with atomic_output(path) as tmp:
         # OBJ: positions and faces only, at full double precision, so that a round trip is exact.
