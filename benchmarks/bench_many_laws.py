@@ -23,7 +23,11 @@ option at its default, in a fresh process on the machine's cores, stopped at the
 each start's residual, iterations and time, the error of ρ after Möbius + O(3) alignment, of its per-degree power,
 and the error the fit reported (``rho_error``); recovered means the per-degree power to 1e-8 relative.
 
-Run:  python -m benchmarks run bench_many_laws --degrees 6 [--truths 24] [--per-coefficient 1.5] [--first N]
+With ``--busy`` one core is kept busy during every fit by a process that spins (a pure-Python loop, started before
+the benchmark's first fit, stopped after its last); the run is recorded apart (``..._busy``) with the ratio of its
+median wall time to that of the idle run of the same truths.
+
+Run:  python -m benchmarks run bench_many_laws --degrees 6 [--truths 24] [--per-coefficient 1.5] [--first N] [--busy]
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
+import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -142,12 +147,36 @@ def main() -> None:
     p.add_argument("--first", type=int, default=0,
                    help="go on from truth N, keeping the record's truths 0 … N-1 of the same run (made by the "
                         "same shspec)")
+    p.add_argument("--busy", action="store_true", help="keep one core busy with a spinning process during the fits")
     args = p.parse_args()
     report = updated_record(NAME)
     runs = report.setdefault("runs", {})
+    spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if args.busy else None
+    try:
+        run_degrees(args, report, runs)
+    finally:
+        if spinner is not None:
+            spinner.kill()
+    print(write_json(NAME, report))
+
+
+def busy_ratio(runs: dict, key: str, rows: list) -> dict:
+    """The median wall time of a busy run's truths against that of the same truths in the idle run ``key``."""
+    idle = {tuple(r["seed"]): r["wall_s"] for r in runs.get(key, {}).get("truths", [])}
+    pairs = [(r["wall_s"], idle[tuple(r["seed"])]) for r in rows if tuple(r["seed"]) in idle]
+    if not pairs:
+        return {"idle_run": key, "ratio_of_medians": None}
+    busy, calm = zip(*pairs)
+    return {"idle_run": key, "truths_compared": len(pairs), "idle_median_s": statistics.median(calm),
+            "busy_median_s": statistics.median(busy),
+            "ratio_of_medians": statistics.median(busy) / statistics.median(calm)}
+
+
+def run_degrees(args, report: dict, runs: dict) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for degree in (int(d) for d in args.degrees.split(",")):
-            key = f"degree{degree}_K{args.per_coefficient:g}"
+            idle_key = f"degree{degree}_K{args.per_coefficient:g}"
+            key = idle_key + ("_busy" if args.busy else "")
             rows = runs.get(key, {}).get("truths", [])[:args.first]
             if [r["seed"] for r in rows] != [[7000, degree, i] for i in range(args.first)]:
                 raise SystemExit(f"--first {args.first}: the record of {key} does not hold truths 0 … {args.first - 1}")
@@ -155,9 +184,10 @@ def main() -> None:
                 rows.append(run_truth(degree, index, args.per_coefficient, Path(tmp)))
                 print(key, index, json.dumps({k: v for k, v in rows[-1].items() if k != "per_start"}), flush=True)
                 runs[key] = {"truths": rows, "summary": degree_summary(rows, degree), "commit": report["commit"]}
+                if args.busy:
+                    runs[key]["busy"] = busy_ratio(runs, idle_key, rows)
                 write_json(NAME, report)
-            print(key, json.dumps(runs[key]["summary"]), flush=True)
-    print(write_json(NAME, report))
+            print(key, json.dumps(runs[key]["summary"]), json.dumps(runs[key].get("busy")), flush=True)
 
 
 if __name__ == "__main__":
