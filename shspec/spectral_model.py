@@ -194,6 +194,19 @@ class SpectralModel(ABC):
         level adds may need a small random perturbation (to leave a symmetric saddle).  Default: unchanged."""
         return params
 
+    def odd_parameters(self) -> np.ndarray | None:
+        """Indices of the parameters that are odd under the antipodal map (harmonic models: those of odd degree),
+        which an even stage (:attr:`~shspec.inverse.Stage.even`) holds at 0; None: the model has no parity, and no
+        stage may be even.  Default: None."""
+        return None
+
+    def release_odd(self, params: np.ndarray, level: int | None, rng: np.random.Generator,
+                    amplitude: float) -> np.ndarray:
+        """Parameters at the start of the first stage after an even one: the odd parameters of ``level`` get a
+        small random perturbation, as :meth:`enter_level` gives the ones a level adds (at an even ρ the gradient
+        along them is exactly 0).  Default: unchanged."""
+        return params
+
     def invariant(self, params: np.ndarray, level: int | None = None) -> np.ndarray:
         """What identifies a solution up to the spectrum's symmetries (default: the parameters themselves)."""
         return np.asarray(params, dtype=float)

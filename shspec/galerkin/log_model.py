@@ -266,6 +266,19 @@ class LogHarmonicModel(SpectralModel):
         out[ncoeffs(old):ncoeffs(new)] = noise[ncoeffs(old):]
         return out
 
+    def odd_parameters(self) -> np.ndarray:
+        """The u_lm of odd degree l ≥ 3 (degree 1 is the gauge, always 0): held at 0, ρ = exp(u) is even."""
+        return np.flatnonzero((degrees(self.lmax_factor) % 2 == 1) & (degrees(self.lmax_factor) >= 3))
+
+    def release_odd(self, params: np.ndarray, level: int | None, rng: np.random.Generator,
+                    amplitude: float) -> np.ndarray:
+        """The odd degrees 3 … ``level`` of u get a small random perturbation (RMS ∝ amplitude/l)."""
+        odd = self.restrict(level).odd_parameters()
+        out = np.array(params, dtype=float)
+        out[odd] = random_coefficients(rng, self.restrict(level).lmax_factor, amplitude * np.sqrt(4 * np.pi),
+                                       low=3)[odd]
+        return out
+
     def invariant(self, params: np.ndarray, level: int | None = None) -> np.ndarray:
         """Per-degree power Σ_m u_lm² (La+1,): invariant under O(3), as rotations commute with exp."""
         return power_spectrum(np.asarray(params, dtype=float))

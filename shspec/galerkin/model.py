@@ -365,15 +365,21 @@ class HarmonicModel(SpectralModel):
         new = self.lmax_factor if new is None else new
         if new <= old:
             return params
-        out = np.array(params, dtype=float)
-        noise = random_coefficients(rng, new, amplitude * out[0], low=old + 1)
-        for _ in range(30):
-            out[ncoeffs(old):ncoeffs(new)] = noise[ncoeffs(old):]
-            # certified as the solves certify it: a start that is positive but cannot be certified would end the fit
-            if _certified(out[:ncoeffs(new)]):
-                return out
-            noise = noise * 0.5
-        return params  # pragma: no cover - a positive ρ stays positive under a small enough change
+        part = np.zeros(ncoeffs(new), dtype=bool)
+        part[ncoeffs(old):] = True
+        return _perturbed(params, part, random_coefficients(rng, new, amplitude * params[0], low=old + 1))
+
+    def odd_parameters(self) -> np.ndarray:
+        """The a_lm of odd degree l ≥ 3 (degree 1 is the gauge, always 0)."""
+        return np.flatnonzero((degrees(self.lmax_factor) % 2 == 1) & (degrees(self.lmax_factor) >= 3))
+
+    def release_odd(self, params: np.ndarray, level: int | None, rng: np.random.Generator,
+                    amplitude: float) -> np.ndarray:
+        """The odd degrees 3 … ``level`` get a small random perturbation, as in :meth:`enter_level`."""
+        la = self.restrict(level).lmax_factor
+        part = np.zeros(ncoeffs(la), dtype=bool)
+        part[self.restrict(level).odd_parameters()] = True
+        return _perturbed(params, part, random_coefficients(rng, la, amplitude * params[0], low=3))
 
     def invariant(self, params: np.ndarray, level: int | None = None) -> np.ndarray:
         """Per-degree power Σ_m a_lm² (La+1,): invariant under O(3)."""
@@ -510,6 +516,19 @@ def block_moves(params: np.ndarray, la: int, *, newest: bool = False) -> list:
 
 def _minimum(params) -> float:
     return ConformalFactor(np.array(params)).minimum().value  # a copy: ConformalFactor freezes its array
+
+
+def _perturbed(params: np.ndarray, part: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """``params`` with its entries in ``part`` (a mask of the first ``noise.size``) set to ``noise``, halved until
+    ρ is certified positive."""
+    out = np.array(params, dtype=float)
+    for _ in range(30):
+        out[:part.size][part] = noise[part]
+        # certified as the solves certify it: a start that is positive but cannot be certified would end the fit
+        if _certified(out[:part.size]):
+            return out
+        noise = noise * 0.5
+    return np.asarray(params, dtype=float)  # pragma: no cover - a positive ρ stays positive under a small enough change
 
 
 def _certified(params) -> bool:

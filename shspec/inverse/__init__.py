@@ -16,10 +16,11 @@ from .options import FitOptions
 from .output import summary, write_result
 from .parametrization import Parametrization
 from .results import FitResult, StartResult
-from .schedule import Stage, default_schedule, degree_ramp, numeig_ramp, parse_schedule
+from .schedule import Stage, default_schedule, degree_ramp, numeig_ramp, parity_ramp, parse_schedule
 from .target import Target, estimate_area
 
 __all__ = ["Alignment", "align", "load_result_summary", "save_result", "Objective", "eigenvalue_weights",
            "relative_residual", "summary", "write_result", "distinct_solutions", "fit", "FitOptions", "FitResult", "Stage", "StartResult",
-           "parse_schedule", "Parametrization", "default_schedule", "numeig_ramp", "degree_ramp", "Target",
+           "parse_schedule", "Parametrization", "default_schedule", "numeig_ramp", "degree_ramp", "parity_ramp",
+           "Target",
            "estimate_area", "target_pairs"]

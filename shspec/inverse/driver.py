@@ -158,7 +158,8 @@ def _end_stage(problem: FitProblem, progress: StartProgress, s: int, obj, optimi
     if opt.orient_blocks and _raises_level(problem, s) and not progress.succeeded(problem):
         orient_new_block(problem, progress, s)
     basis = "" if problem.bases[s] is None else f", basis degree {problem.bases[s]}"
-    progress.say(opt, f"  start {progress.index} stage {s} ({_level_text(obj.model, problem.level(s))}"
+    parity = "odd degrees at 0, " if problem.stages[s].even else ""
+    progress.say(opt, f"  start {progress.index} stage {s} ({_level_text(obj.model, problem.level(s))}{parity}"
                       f"{obj.target.size} eigenvalues{basis}): {progress.status} after {optimizer.iteration} "
                       f"iterations, max rel. residual {optimizer.ev.relative_residual:.3e}")
     if progress.display is not None:

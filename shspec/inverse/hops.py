@@ -88,7 +88,8 @@ def orient_new_block(problem: FitProblem, progress: StartProgress, s: int) -> No
     """After stage s raised the level: try the orientations of the newest block (the model's moves with
     ``newest=True``: rotations of an octahedral grid and, for odd degrees, their negatives) relative to the blocks
     fitted before, keeping the best that lowers the energy (see :attr:`FitOptions.orient_blocks`)."""
-    moves = problem.model.escape_moves(progress.params, problem.level(s), newest=True)
+    moves = problem.stage_moves(s, progress.params,
+                                problem.model.escape_moves(progress.params, problem.level(s), newest=True))
     accepted, status = hop_once(problem, progress, s, moves, progress.status)
     if accepted:
         progress.status = status
@@ -110,11 +111,11 @@ def basin_hop(problem: FitProblem, progress: StartProgress, status: str, s: int)
     level = problem.level(s)
     where = "" if s == len(problem.stages) - 1 else f"stage {s} "
     for hop in range(opt.basin_hops):
-        moves = problem.model.escape_moves(progress.params, level)
+        moves = problem.stage_moves(s, progress.params, problem.model.escape_moves(progress.params, level))
         accepted, status = hop_once(problem, progress, s, moves, status)
         tried = f"{len(moves)} moves"
         if not accepted and opt.hop_grid:
-            grid = grid_moves(problem.model, progress.params, level)
+            grid = problem.stage_moves(s, progress.params, grid_moves(problem.model, progress.params, level))
             if grid:
                 accepted, status = hop_once(problem, progress, s, grid, status)
                 tried += f", then {min(len(grid), opt.hop_tries)} of {len(grid)} grid moves"

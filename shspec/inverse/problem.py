@@ -99,6 +99,9 @@ class FitProblem:
             if st.numeig is not None and st.numeig > target.numeig:
                 raise InvalidArgumentError(f"a stage matches {st.numeig} eigenvalues; the target has {target.numeig}")
             model.restrict(st.lmax_factor)  # raises for a level the model does not have
+            if st.even and model.odd_parameters() is None:
+                raise InvalidArgumentError(f"an even stage holds the odd parameters at 0; {model.describe()} has "
+                                           "no parity")
         if options.area == "fixed" and target.area is None and target.numeig < 4:
             raise InvalidArgumentError("a fixed area needs a known area or a spectrum to estimate it from")
         self._set_target(target)
@@ -151,11 +154,15 @@ class FitProblem:
         return self.model.random_start(rng, self.options.start_amplitude, self.area, self.level(0))
 
     def enter_stage(self, s: int, params: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Parameters at the start of stage s: what its level adds gets a small random perturbation."""
+        """Parameters at the start of stage s: what its level adds gets a small random perturbation, and so do the
+        odd parameters after an even stage (:attr:`Stage.even`)."""
         if s == 0:
             return params
-        return self.model.enter_level(params, self.level(s - 1), self.level(s), rng,
-                                      _NEW_DEGREE_SCALE * self.options.start_amplitude)
+        amplitude = _NEW_DEGREE_SCALE * self.options.start_amplitude
+        params = self.model.enter_level(params, self.level(s - 1), self.level(s), rng, amplitude)
+        if self.stages[s - 1].even and not self.stages[s].even:
+            params = self.model.release_odd(params, self.level(s), rng, amplitude)
+        return params
 
     def objective(self, s: int, params: np.ndarray) -> Objective:
         """The energy of stage s with the fixed parameters taken from ``params`` (nparams,)."""
@@ -163,10 +170,24 @@ class FitProblem:
         k = self.target.numeig if st.numeig is None else st.numeig
         lam = self.target.eigenvalues[:k]
         sub = self.model.restrict(self.level(s), self.bases[s])
-        par = Parametrization.at(self.model.to_level(params, self.level(s)), sub.free_parameters(self.fit_area),
-                                 sub.transform)
+        base, free = self.model.to_level(params, self.level(s)), sub.free_parameters(self.fit_area)
+        if st.even:
+            odd = sub.odd_parameters()
+            base = base.copy()
+            base[odd] = 0.0
+            free = np.setdiff1d(free, odd)
+        par = Parametrization.at(base, free, sub.transform)
         errors = None if self.target.errors is None else self.target.errors[:k]
         return Objective(sub, lam, eigenvalue_weights(lam, self.options.weights, errors), par, self.options.reg)
+
+    def stage_moves(self, s: int, params: np.ndarray, moves: list) -> list:
+        """The escape moves (parameter vectors, nparams each) that change what stage s fits: on an even stage
+        (:attr:`Stage.even`) a move of odd parameters only is no move, as the stage holds them at 0."""
+        if not self.stages[s].even:
+            return moves
+        even = np.ones(np.size(params), dtype=bool)
+        even[self.model.restrict(self.level(s)).odd_parameters()] = False
+        return [q for q in moves if np.any(q[even] != params[even])]
 
     def search_basis_holds(self, params: np.ndarray) -> bool:
         """Whether the search stage's basis holds at ``params`` (nparams,), not only at the reference it was chosen

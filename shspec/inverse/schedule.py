@@ -8,7 +8,7 @@ line's syntax.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -16,8 +16,9 @@ from ..core.checks import check_int
 from ..errors import InvalidArgumentError
 from ..spectral_model import SpectralModel
 
-__all__ = ["Stage", "parse_schedule", "numeig_ramp", "degree_ramp", "default_schedule", "default_hop_degree",
-           "DEFAULT_STAGE_MAX_ITER", "DEFAULT_HOP_DEGREE", "HOP_FIT_DEGREE"]
+__all__ = ["Stage", "parse_schedule", "numeig_ramp", "degree_ramp", "parity_ramp", "default_schedule",
+           "default_hop_degree", "DEFAULT_STAGE_MAX_ITER", "DEFAULT_HOP_DEGREE", "HOP_FIT_DEGREE",
+           "PARITY_FIT_DEGREE"]
 
 
 @dataclass(frozen=True)
@@ -37,35 +38,43 @@ class Stage:
     hops : bool
         Run the basin hops (:attr:`FitOptions.basin_hops`) at the end of this stage too, not only after the last
         one: a global search while the problem is small and its moves are cheap (see :func:`degree_ramp`).
+    even : bool
+        Hold the odd parameters at 0 (harmonic models: the odd degrees of ρ, or of log ρ), so that ρ is even under
+        the antipodal map; the first stage after an even one gives them a small seeded random perturbation.  The
+        odd degrees move the spectrum only at second order, so the even part of ρ is fitted first with little bias
+        from them (see :func:`parity_ramp`).
 
     Examples
     --------
     >>> from shspec.inverse import Stage
     >>> Stage(lmax_factor=6, numeig=64, hops=True)
-    Stage(lmax_factor=6, numeig=64, max_iter=None, hops=True)
+    Stage(lmax_factor=6, numeig=64, max_iter=None, hops=True, even=False)
     """
 
     lmax_factor: int | None = None
     numeig: int | None = None
     max_iter: int | None = None
     hops: bool = False
+    even: bool = False
 
     def __post_init__(self):
         check_int(self.lmax_factor, "Stage.lmax_factor", allow_none=True, minimum=0)
         check_int(self.numeig, "Stage.numeig", allow_none=True, minimum=2)
         check_int(self.max_iter, "Stage.max_iter", allow_none=True, minimum=1)
-        if not isinstance(self.hops, bool):
-            raise InvalidArgumentError(f"Stage.hops must be True or False, got {self.hops!r}")
+        for name in ("hops", "even"):
+            if not isinstance(getattr(self, name), bool):
+                raise InvalidArgumentError(f"Stage.{name} must be True or False, got {getattr(self, name)!r}")
 
 
 def parse_schedule(text: str) -> tuple[Stage, ...]:
     """Stages from the command-line syntax ``"2,4,8,15"`` (degrees) or ``"2:40,4:80,8"`` (degree:numeig); an
-    entry ending in ``h`` (``"6:64h"``) runs the basin hops at the end of its stage (:attr:`Stage.hops`).
+    entry ending in ``h`` (``"6:64h"``) runs the basin hops at the end of its stage (:attr:`Stage.hops`), one ending
+    in ``e`` (``"8:64e"``) holds the odd degrees at 0 (:attr:`Stage.even`), ``eh`` both.
 
     Raises
     ------
     InvalidArgumentError
-        If an entry is not ``L`` or ``L:K`` with integers, optionally followed by ``h``.
+        If an entry is not ``L`` or ``L:K`` with integers, optionally followed by ``e``, ``h`` or ``eh``.
 
     Examples
     --------
@@ -74,6 +83,8 @@ def parse_schedule(text: str) -> tuple[Stage, ...]:
     [(2, None, False), (4, None, False), (6, None, False)]
     >>> [(s.lmax_factor, s.numeig, s.hops) for s in parse_schedule("6:16,6:64h")]   # L:K, h: hop there
     [(6, 16, False), (6, 64, True)]
+    >>> [(s.numeig, s.even) for s in parse_schedule("8:64e,8:100")]   # e: odd degrees held at 0
+    [(64, True), (100, False)]
     """
     if not isinstance(text, str) or not text.strip():
         raise InvalidArgumentError(f"a schedule is a comma-separated list like '2,4,8,15', got {text!r}")
@@ -81,15 +92,16 @@ def parse_schedule(text: str) -> tuple[Stage, ...]:
     for item in text.split(","):
         entry = item.strip()
         hops = entry.endswith("h")
-        parts = entry.removesuffix("h").split(":")
+        even = entry.removesuffix("h").endswith("e")
+        parts = entry.removesuffix("h").removesuffix("e").split(":")
         try:
             nums = [int(p) for p in parts]
         except ValueError:
             raise InvalidArgumentError(f"schedule entry {item!r} is not 'L' or 'L:K' with integers "
-                                       "(optionally followed by 'h')") from None
+                                       "(optionally followed by 'e', 'h' or 'eh')") from None
         if len(nums) not in (1, 2):
             raise InvalidArgumentError(f"schedule entry {item!r} is not 'L' or 'L:K'")
-        stages.append(Stage(lmax_factor=nums[0], numeig=nums[1] if len(nums) == 2 else None, hops=hops))
+        stages.append(Stage(lmax_factor=nums[0], numeig=nums[1] if len(nums) == 2 else None, hops=hops, even=even))
     return tuple(stages)
 
 
@@ -105,6 +117,12 @@ DEFAULT_HOP_DEGREE = 6
 #: The smallest fit degree whose default degree ramp hops at :data:`DEFAULT_HOP_DEGREE`.  At degree 8 the hops of
 #: the degree-6 stage cannot reach a zero residual and only cost time (measured: :doc:`/notes`).
 HOP_FIT_DEGREE = 10
+
+#: The smallest fit degree whose default schedule is the :func:`parity_ramp` (up to :data:`HOP_FIT_DEGREE`,
+#: where the degree ramp with its degree-6 hops stays, as the parity ramp was not measured there).  At degree 8
+#: the degree ramp's truncated stages pull ρ of slowly falling degree powers (l⁻¹, l⁻¹·⁵) out of their basin
+#: (:doc:`/notes`).
+PARITY_FIT_DEGREE = 8
 
 
 def numeig_ramp(numeig: int, lmax_factor: int | None = None, first: int = 16) -> tuple[Stage, ...]:
@@ -188,6 +206,35 @@ def degree_ramp(numeig: int, lmax_factor: int, stage_max_iter: int | None = None
     return tuple(stages)
 
 
+def parity_ramp(numeig: int, lmax_factor: int | None = None, first: int = 36) -> tuple[Stage, ...]:
+    """A schedule that fits the even part of ρ first: the even degrees up to La on a ramp of eigenvalues (the
+    squares of even numbers from ``first`` up, then ``numeig``; odd degrees held at 0, :attr:`Stage.even`), then
+    every degree to all ``numeig`` eigenvalues.
+
+    A ramp of degrees biases every stage but the last: the degrees it leaves out move the low eigenvalues at first
+    order.  An odd degree moves them only at second order (:doc:`/theory`), so the even stages see every degree
+    that acts at first order, and the odd ones then start from small random values (the parity saddle) beside an
+    even part already near the truth's.
+
+    Parameters
+    ----------
+    numeig : int
+        Eigenvalues of the last even stage and of the final one.
+    lmax_factor : int, optional
+        Degree of every stage; None: the model's.
+    first : int
+        Eigenvalues of the first stage.
+
+    Examples
+    --------
+    >>> from shspec.inverse import parity_ramp
+    >>> [(s.numeig, s.even) for s in parity_ramp(120, 8)]
+    [(36, True), (64, True), (100, True), (120, True), (120, False)]
+    """
+    even = numeig_ramp(numeig, lmax_factor, first)
+    return (*(replace(st, even=True) for st in even), Stage(lmax_factor=lmax_factor, numeig=int(numeig)))
+
+
 def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
     """The schedule a fit runs when its options name none: :func:`degree_ramp` over the model's levels (harmonic
     models: the factor's degree), :func:`numeig_ramp` for models without levels (meshes).
@@ -205,6 +252,8 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
     levels = model.levels()
     if not levels:
         return numeig_ramp(numeig)
+    if PARITY_FIT_DEGREE <= levels[-1] < HOP_FIT_DEGREE and model.odd_parameters() is not None:
+        return parity_ramp(numeig, levels[-1])
     return degree_ramp(numeig, levels[-1], stage_max_iter=DEFAULT_STAGE_MAX_ITER,
                        hop_degree=default_hop_degree(levels[-1]))
 
