@@ -117,10 +117,12 @@ def _add_mesh_options(mesh) -> None:
 
 
 def _add_search_options(adv, d: FitOptions) -> None:
-    adv.add_argument("--schedule", default="auto", metavar="S",
-                     help="'auto', 'degree-ramp', 'ramp', 'none', or stages '2,4,8,15' / '6:16,6:64h' (L:K, h = hop)")
+    adv.add_argument("--schedule", default="auto", metavar="S", help="auto, degree-ramp, parity-ramp, ramp, none, "
+                     "or stages '2,4,8' / '6:16,6:64h,8:80e,8' (L:K, h: hops, e: odd degrees 0)")
+    adv.add_argument("--start-budget", type=int, default=None, metavar="N",
+                     help="end a failed start after N search iterations' work (0: never; default: 1500 at La 8, 9)")
     adv.add_argument("--hop-degree", type=int, default=None, metavar="D",
-                     help="degree whose stage hops in the degree ramp (0: none; default: 6 in fits of degree 10 and more)")
+                     help="degree ramp hops at degree D (0: none; 6 from La 10)")
     adv.add_argument("--basin-hops", type=int, default=d.basin_hops, metavar="N", help="accepted escape moves at most")
     adv.add_argument("--hop-grid", action=argparse.BooleanOptionalAction, default=d.hop_grid,
                      help="also try every degree block turned through the octahedral group")
@@ -136,14 +138,14 @@ def _add_search_options(adv, d: FitOptions) -> None:
     adv.add_argument("--area", choices=AREA_MODES, default=d.area, metavar="MODE", help="the area a_00: " + ", ".join(AREA_MODES))
     adv.add_argument("--max-iter", type=int, default=d.max_iter, metavar="N", help="iterations per stage")
     adv.add_argument("--amplitude", type=float, default=d.start_amplitude, metavar="A",
-                     help="size of the random starts, relative to the mean of rho")
+                     help="starts' RMS size relative to mean rho")
 
 
 def _request(args) -> FitRequest:
     """The fit the arguments ask for."""
     checkpoint = args.out / "checkpoint.h5" if args.checkpoint_every or args.resume else None
     options = FitOptions(optimizer=args.optimizer, weights=args.weights, area=args.area, starts=args.starts,
-                         stop_at_success=not args.all_starts, seed=args.seed, start_amplitude=args.amplitude,
+                         start_budget=args.start_budget, stop_at_success=not args.all_starts, seed=args.seed, start_amplitude=args.amplitude,
                          max_iter=args.max_iter, basin_hops=args.basin_hops, hop_grid=args.hop_grid,
                          hop_tries=args.hop_tries, hop_extend=args.hop_extend, stage_basis_tol=args.stage_basis_tol,
                          search_basis_tol=args.search_basis_tol, checkpoint_every=args.checkpoint_every,

@@ -32,7 +32,7 @@ from ..inverse.identifiability import identifiability
 from ..inverse.options import FitOptions
 from ..inverse.prepared import PreparedFit
 from ..inverse.schedule import (DEFAULT_STAGE_MAX_ITER, default_hop_degree, degree_ramp, numeig_ramp,
-                                parse_schedule)
+                                parity_ramp, parse_schedule)
 from ..inverse.target import Target
 from ..mesh.model import MeshModel
 from ..mesh.progress import mesh_progress
@@ -557,6 +557,10 @@ def _schedule(p: _Planning, given):
         return ()
     if text == "ramp":
         return numeig_ramp(p.target.numeig)
+    if text == "parity-ramp":
+        if p.kind == "mesh":
+            raise InvalidArgumentError("the parity ramp holds odd degrees at 0: a mesh model has no degrees")
+        return parity_ramp(p.target.numeig, p.lmax_factor)
     return parse_schedule(text)
 
 

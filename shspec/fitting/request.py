@@ -67,8 +67,8 @@ class FitRequest:
     adaptive : AdaptiveOptions or None
         Fit a mesh's factors from an icosphere refined as the fit goes (:func:`~shspec.fitting.adaptive_fit`).
     schedule : str or tuple
-        "auto" (``options.schedule``, else the fit's default), "degree-ramp", "ramp", "none", a stage text
-        ("2,4,8,15", "6:16,6:64h") or a tuple of :class:`~shspec.inverse.Stage`.
+        "auto" (``options.schedule``, else the fit's default), "degree-ramp", "parity-ramp", "ramp", "none", a
+        stage text ("2,4,8,15", "6:16,6:64h", "8:64e,8") or a tuple of :class:`~shspec.inverse.Stage`.
     hop_degree : int or None
         The degree whose stage hops in the degree ramp (0: none).
     init : array, path or None

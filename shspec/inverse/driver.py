@@ -10,7 +10,7 @@ from ..errors import NotPositiveError
 from ..spectral_model import SpectralModel
 from .hops import basin_hop, orient_new_block
 from .optimize import make_optimizer
-from .problem import FitProblem, StartProgress
+from .problem import BUDGET, BudgetSpent, FitProblem, StartProgress
 from .race import ABANDONED, RaceLost
 from .results import StartResult
 
@@ -36,11 +36,18 @@ def run_start(problem: FitProblem, progress: StartProgress, checkpoint=None) -> 
         (:mod:`~shspec.inverse.race`).
     """
     t0 = time.perf_counter() - progress.seconds
+    progress.budget = problem.work_budget
     try:
         return _run(problem, progress, checkpoint, t0)
     except RaceLost as lost:
         progress.say(problem.options, f"  start {progress.index} abandoned: {lost}")
         return progress.result(ABANDONED, time.perf_counter() - t0, False)
+    except BudgetSpent as spent:
+        progress.say(problem.options, f"  start {progress.index} ended: {spent}, max rel. residual "
+                                      f"{progress.relative_residual:.3e}")
+        # a state of an earlier stage matches fewer eigenvalues than the target has: no success
+        last = progress.stage >= len(problem.stages) - 1
+        return progress.result(BUDGET, time.perf_counter() - t0, last and progress.succeeded(problem, final=True))
     finally:
         # one clock per start: an interrupt anywhere, in the hops too, leaves its time up to date for the result
         progress.seconds = time.perf_counter() - t0

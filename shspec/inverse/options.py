@@ -59,6 +59,13 @@ class FitOptions:
         model's own basis.  Default 1e-6.
     starts : int
         Number of random symmetry-broken starts (default 4).
+    start_budget : int or None
+        A start that has not succeeded after this much work ends there, failed, with status "budget" and its best
+        state, and the next start runs.  The work is the race's (:mod:`~shspec.inverse.race`, the same on every
+        machine), counted here in iterations of the search stage (the last stage of the schedule, on its search
+        basis): a budget of 1500 is 1500 such iterations, or more iterations of the cheaper stages before it.
+        None (default): :func:`~shspec.inverse.schedule.default_start_budget`, a budget where one was measured
+        (fits of degree 8 and 9 with the default schedule), else none; 0: none.
     stop_at_success : bool
         Stop at a success (default): the starts race in rounds of ``race``, and the fit keeps the first round with
         a success, up to its success of least work (:mod:`~shspec.inverse.race`), the same starts and numbers
@@ -138,6 +145,7 @@ class FitOptions:
     stage_basis_tol: float | None = 1e-5
     search_basis_tol: float | None = 1e-6
     starts: int = 4
+    start_budget: int | None = None
     stop_at_success: bool = True
     race: int = 2
     seed: int = 0
@@ -178,6 +186,7 @@ class FitOptions:
         if self.search_basis_tol is not None:
             check_float(self.search_basis_tol, "search_basis_tol", positive=True)
         check_int(self.starts, "starts", minimum=1)
+        check_int(self.start_budget, "start_budget", allow_none=True, minimum=0)
         check_int(self.race, "race", minimum=1)
         check_int(self.seed, "seed", minimum=0)
         check_float(self.start_amplitude, "start_amplitude", positive=True)

@@ -25,9 +25,9 @@ from .energy import Objective, eigenvalue_weights
 from .options import FitOptions, fits_area
 from .parametrization import Parametrization
 from .results import StartResult
-from .schedule import Stage, default_schedule
+from .schedule import Stage, default_schedule, default_start_budget
 
-__all__ = ["FitProblem", "StartProgress", "consistent_with_errors", "CHI2_SIGMAS", "SEARCH_MARGIN"]
+__all__ = ["FitProblem", "StartProgress", "BudgetSpent", "BUDGET", "consistent_with_errors", "CHI2_SIGMAS", "SEARCH_MARGIN"]
 
 #: A fit is consistent with a target's errors when χ²/ν ≤ 1 + CHI2_SIGMAS·√(2/ν), ν = K − 1 eigenvalues: the mean
 #: of χ²/ν is 1 and its standard deviation √(2/ν) for Gaussian errors.
@@ -125,10 +125,21 @@ class FitProblem:
             self.stages = (*self.stages[:-1], replace(last, hops=True), last)
             self.bases = [*self.bases[:-1], bases[-1], None]
             self.search = len(self.stages) - 2
+        #: the work after which a start that has not succeeded ends (FitOptions.start_budget; None: no limit), in
+        #: the race's units: the budget's iterations times the search stage's solve cost
+        self.work_budget = self._work_budget(options.start_budget, options.schedule if init is None else ())
         if options.progress and any(b is not None for b in self.bases):
             print("stage bases (degree:eigenvalues -> basis degree): " + ", ".join(
                 f"{st.lmax_factor}:{st.numeig or target.numeig} -> {b}" for st, b in zip(self.stages, self.bases)
                 if b is not None), file=sys.stderr, flush=True)
+
+    def _work_budget(self, budget: int | None, schedule) -> float | None:
+        budget = default_start_budget(self.model, schedule) if budget is None else budget
+        if not budget:
+            return None
+        s = len(self.stages) - 1 if self.search is None else self.search
+        st = self.stages[s]
+        return budget * self.model.restrict(self.level(s), self.bases[s]).solve_cost(st.numeig or self.target.numeig)
 
     def with_target(self, target: Target) -> "FitProblem":
         """This problem with ``target`` instead, of as many eigenvalues (a checkpoint's own copy of the target,
@@ -250,6 +261,14 @@ def _stage_bases(model: SpectralModel, requests: list, executor) -> list:
     return out
 
 
+#: Status of a start ended by its budget (:attr:`FitOptions.start_budget`).
+BUDGET = "budget"
+
+
+class BudgetSpent(Exception):
+    """Raised in a start whose work reached its budget (:attr:`FitOptions.start_budget`) without success."""
+
+
 @dataclass
 class StartProgress:
     """Where a start is: enough to checkpoint it or to report it after Ctrl-C.
@@ -294,6 +313,9 @@ class StartProgress:
     #: what the start knows of its round's best success (:class:`~shspec.inverse.race.RaceBound`; None: no race);
     #: not part of a checkpoint
     bound: object = field(default=None, repr=False, compare=False)
+    #: the work after which the start ends (:attr:`FitProblem.work_budget`, set when it runs); not part of a
+    #: checkpoint, as it follows from the options
+    budget: float | None = field(default=None, repr=False, compare=False)
     #: the fit's :class:`~shspec.inverse.progress.FitDisplay` while it runs here (None in an executor's worker,
     #: whose lines go to its own stderr); not part of a checkpoint
     display: object = field(default=None, repr=False, compare=False)
@@ -316,10 +338,12 @@ class StartProgress:
 
     def add_work(self, cost: float) -> None:
         """Count ``cost`` more work; raises :class:`~shspec.inverse.race.RaceLost` once the start can no longer win
-        its round."""
+        its round, :class:`BudgetSpent` once it has spent ``budget``."""
         self.work += cost
         if self.bound is not None:
             self.bound.check(self.work)
+        if self.budget is not None and self.work >= self.budget:
+            raise BudgetSpent(f"its work reached the start budget ({self.budget:.6g})")
 
     def say(self, options, text: str) -> None:
         """Report a line of this start: through the fit's display, else (a worker) on stderr if ``progress``."""

@@ -18,7 +18,7 @@ from ..spectral_model import SpectralModel
 
 __all__ = ["Stage", "parse_schedule", "numeig_ramp", "degree_ramp", "parity_ramp", "default_schedule",
            "default_hop_degree", "DEFAULT_STAGE_MAX_ITER", "DEFAULT_HOP_DEGREE", "HOP_FIT_DEGREE",
-           "PARITY_FIT_DEGREE"]
+           "PARITY_FIT_DEGREE", "DEFAULT_START_BUDGET", "default_start_budget"]
 
 
 @dataclass(frozen=True)
@@ -256,6 +256,29 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
         return parity_ramp(numeig, levels[-1])
     return degree_ramp(numeig, levels[-1], stage_max_iter=DEFAULT_STAGE_MAX_ITER,
                        hop_degree=default_hop_degree(levels[-1]))
+
+
+#: The work (iterations of the search stage, :attr:`FitOptions.start_budget`) after which a start of the default
+#: parity ramp that has not succeeded ends, so that the next start runs: its successes on the many-law benchmark
+#: took at most 1224, the failures ran on in their hops up to the goal's time (:doc:`/notes`).
+DEFAULT_START_BUDGET = 1500
+
+
+def default_start_budget(model: SpectralModel, schedule) -> int:
+    """The start budget of a fit whose options name none: :data:`DEFAULT_START_BUDGET` with the default schedule
+    (``schedule`` None) where it is the :func:`parity_ramp`, 0 (none) elsewhere, where no budget was measured.
+
+    Examples
+    --------
+    >>> from shspec import HarmonicModel
+    >>> from shspec.inverse.schedule import default_start_budget
+    >>> default_start_budget(HarmonicModel(12, 8), None), default_start_budget(HarmonicModel(12, 6), None)
+    (1500, 0)
+    """
+    levels = model.levels()
+    parity = (schedule is None and bool(levels) and PARITY_FIT_DEGREE <= levels[-1] < HOP_FIT_DEGREE
+              and model.odd_parameters() is not None)
+    return DEFAULT_START_BUDGET if parity else 0
 
 
 def default_hop_degree(lmax_factor: int) -> int | None:

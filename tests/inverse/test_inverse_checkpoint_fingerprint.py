@@ -20,7 +20,7 @@ _CHANGED = {
     "stage_basis_tol": 1e-4, "search_basis_tol": 1e-5, "seed": 4, "start_amplitude": 0.1, "max_iter": 5,
     "residual_tol": 1e-12, "step_tol": 1e-14, "energy_tol": 1e-5, "lbfgs_memory": 10, "lm_damping": 1e-2,
     "lm_acceleration": False, "basin_hops": 1, "hop_iter": 10, "hop_extend": 40, "hop_grid": False,
-    "hop_tries": 100, "orient_blocks": True, "distinct_tol": 1e-3, "success_tol": 1e-9,
+    "hop_tries": 100, "orient_blocks": True, "distinct_tol": 1e-3, "success_tol": 1e-9, "start_budget": 10,
 }
 
 
