@@ -42,8 +42,8 @@ class FitOptions:
         Treatment of a_00, see :data:`AREA_MODES` (harmonic fits).
     schedule : tuple of Stage or None
         Stages run in order from each start; empty: one stage at full degree with every eigenvalue; None
-        (default): the model's :func:`~shspec.inverse.default_schedule` (the degree ramp for harmonic models, the
-        numeig ramp for meshes).
+        (default): the model's :func:`~shspec.inverse.default_schedule` (for harmonic models the degree ramp, at
+        degrees 8 and 9 the parity ramp; the numeig ramp for meshes).
     stage_basis_tol : float or None
         Every stage but the last runs on the coarsest discretization on which its eigenvalues agree with the
         model's own to this relative tolerance (:meth:`~shspec.spectral_model.SpectralModel.stage_basis`, chosen

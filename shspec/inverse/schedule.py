@@ -237,7 +237,8 @@ def parity_ramp(numeig: int, lmax_factor: int | None = None, first: int = 36) ->
 
 def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
     """The schedule a fit runs when its options name none: :func:`degree_ramp` over the model's levels (harmonic
-    models: the factor's degree), :func:`numeig_ramp` for models without levels (meshes).
+    models: the factor's degree), :func:`parity_ramp` at degrees :data:`PARITY_FIT_DEGREE` up to
+    :data:`HOP_FIT_DEGREE` (excluded), :func:`numeig_ramp` for models without levels (meshes).
 
     The stages of the degree ramp but the last are capped at :data:`DEFAULT_STAGE_MAX_ITER` iterations; how often
     each schedule succeeds, measured, is in the design notes (:doc:`/notes`).
@@ -248,6 +249,8 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
     >>> from shspec.inverse import default_schedule
     >>> [(s.lmax_factor, s.numeig) for s in default_schedule(HarmonicModel(12, 6), 40)][:2]   # the degree ramp
     [(2, 16), (3, 25)]
+    >>> [(s.numeig, s.even) for s in default_schedule(HarmonicModel(12, 8), 100)]   # degree 8: the parity ramp
+    [(36, True), (64, True), (100, True), (100, False)]
     """
     levels = model.levels()
     if not levels:
