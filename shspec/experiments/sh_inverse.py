@@ -97,7 +97,7 @@ def _row(name: str, opts, result, al, model, target, truth, k: int) -> dict:
     lam = best.eigenvalues
     spectral = 0.5 * float(np.sum(((lam[1:] - target.eigenvalues[1:]) / target.eigenvalues[1:]) ** 2))
     ident = result.identifiability()
-    stages = len(default_schedule(model, k) if opts.schedule is None else opts.schedule) or 1
+    stages = len(default_schedule(model, k, target.errors is None) if opts.schedule is None else opts.schedule) or 1
     return {"fit": name, "reg": opts.reg, "stages": stages,
             "iterations": best.iterations, "seconds": result.seconds, "energy": best.energy,
             "spectral_energy": spectral, "residual_max": best.relative_residual,

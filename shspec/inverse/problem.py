@@ -93,7 +93,8 @@ class FitProblem:
         else:
             # a given start already holds the coarse shape: one stage at full resolution, not a ramp that would
             # truncate it to the first level
-            schedule = (Stage(),) if init is not None else default_schedule(model, target.numeig)
+            schedule = (Stage(),) if init is not None else default_schedule(model, target.numeig,
+                                                                              target.errors is None)
         self.stages = schedule or (Stage(),)
         for st in self.stages:
             if st.numeig is not None and st.numeig > target.numeig:
@@ -134,7 +135,7 @@ class FitProblem:
                 if b is not None), file=sys.stderr, flush=True)
 
     def _work_budget(self, budget: int | None, schedule) -> float | None:
-        budget = default_start_budget(self.model, schedule) if budget is None else budget
+        budget = default_start_budget(self.model, schedule, self.target.errors is None) if budget is None else budget
         if not budget:
             return None
         s = len(self.stages) - 1 if self.search is None else self.search

@@ -235,10 +235,11 @@ def parity_ramp(numeig: int, lmax_factor: int | None = None, first: int = 36) ->
     return (*(replace(st, even=True) for st in even), Stage(lmax_factor=lmax_factor, numeig=int(numeig)))
 
 
-def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
+def default_schedule(model: SpectralModel, numeig: int, exact: bool = True) -> tuple[Stage, ...]:
     """The schedule a fit runs when its options name none: :func:`degree_ramp` over the model's levels (harmonic
-    models: the factor's degree), :func:`parity_ramp` at degrees :data:`PARITY_FIT_DEGREE` up to
-    :data:`HOP_FIT_DEGREE` (excluded), :func:`numeig_ramp` for models without levels (meshes).
+    models: the factor's degree); for an ``exact`` target (no errors) :func:`parity_ramp` at degrees
+    :data:`PARITY_FIT_DEGREE` up to :data:`HOP_FIT_DEGREE` (excluded), where it was measured; :func:`numeig_ramp` for
+    models without levels (meshes).
 
     The stages of the degree ramp but the last are capped at :data:`DEFAULT_STAGE_MAX_ITER` iterations; how often
     each schedule succeeds, measured, is in the design notes (:doc:`/notes`).
@@ -255,7 +256,7 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
     levels = model.levels()
     if not levels:
         return numeig_ramp(numeig)
-    if PARITY_FIT_DEGREE <= levels[-1] < HOP_FIT_DEGREE and model.odd_parameters() is not None:
+    if _parity_default(model, exact):
         return parity_ramp(numeig, levels[-1])
     return degree_ramp(numeig, levels[-1], stage_max_iter=DEFAULT_STAGE_MAX_ITER,
                        hop_degree=default_hop_degree(levels[-1]))
@@ -267,9 +268,10 @@ def default_schedule(model: SpectralModel, numeig: int) -> tuple[Stage, ...]:
 DEFAULT_START_BUDGET = 1500
 
 
-def default_start_budget(model: SpectralModel, schedule) -> int:
+def default_start_budget(model: SpectralModel, schedule, exact: bool = True) -> int:
     """The start budget of a fit whose options name none: :data:`DEFAULT_START_BUDGET` with the default schedule
-    (``schedule`` None) where it is the :func:`parity_ramp`, 0 (none) elsewhere, where no budget was measured.
+    (``schedule`` None) where it is the :func:`parity_ramp` (``exact``: a target without errors), 0 (none) elsewhere,
+    where no budget was measured.
 
     Examples
     --------
@@ -278,10 +280,16 @@ def default_start_budget(model: SpectralModel, schedule) -> int:
     >>> default_start_budget(HarmonicModel(12, 8), None), default_start_budget(HarmonicModel(12, 6), None)
     (1500, 0)
     """
+    return DEFAULT_START_BUDGET if schedule is None and _parity_default(model, exact) else 0
+
+
+def _parity_default(model: SpectralModel, exact: bool) -> bool:
+    """Whether the default schedule of ``model`` is the parity ramp: an exact target (the many-law benchmark's
+    spectra; a mesh's or a noisy spectrum's fit keeps the degree ramp it was measured with), a model with parity,
+    of a degree from PARITY_FIT_DEGREE up to HOP_FIT_DEGREE (excluded)."""
     levels = model.levels()
-    parity = (schedule is None and bool(levels) and PARITY_FIT_DEGREE <= levels[-1] < HOP_FIT_DEGREE
-              and model.odd_parameters() is not None)
-    return DEFAULT_START_BUDGET if parity else 0
+    return (bool(exact) and bool(levels) and PARITY_FIT_DEGREE <= levels[-1] < HOP_FIT_DEGREE
+            and model.odd_parameters() is not None)
 
 
 def default_hop_degree(lmax_factor: int) -> int | None:

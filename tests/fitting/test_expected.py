@@ -16,7 +16,8 @@ RECORD = Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "bench
 
 
 def test_the_shipped_record_is_the_benchmarks_record():
-    runs = json.loads(RECORD.read_text())["runs"]
+    # the expectation is an idle machine's: the runs beside a busy core (--busy) are not shipped
+    runs = {key: run for key, run in json.loads(RECORD.read_text())["runs"].items() if not key.endswith("_busy")}
     assert {(m.degree, m.per_coefficient) for m in MEASURED} == {
         (int(key.split("_")[0].removeprefix("degree")), float(key.split("_K")[1])) for key in runs}
     for m in MEASURED:

@@ -39,6 +39,9 @@ def test_default_schedule_is_the_parity_ramp_at_degrees_8_and_9(la, even_first):
     stages = default_schedule(HarmonicModel(la, la), 150)
     assert stages[0].even is even_first
     assert not stages[-1].even
+    # a target with errors (a mesh's, a measured spectrum) keeps the degree ramp: the parity ramp was measured on
+    # exact spectra
+    assert not default_schedule(HarmonicModel(la, la), 150, exact=False)[0].even
 
 
 def _odd(la):
