@@ -118,10 +118,10 @@ DEFAULT_HOP_DEGREE = 6
 #: the degree-6 stage cannot reach a zero residual and only cost time (measured: :doc:`/notes`).
 HOP_FIT_DEGREE = 10
 
-#: The smallest fit degree whose default schedule is the :func:`parity_ramp` (up to :data:`HOP_FIT_DEGREE`,
-#: where the degree ramp with its degree-6 hops stays, as the parity ramp was not measured there).  At degree 8
-#: the degree ramp's truncated stages pull ρ of slowly falling degree powers (l⁻¹, l⁻¹·⁵) out of their basin
-#: (:doc:`/notes`).
+#: The smallest fit degree whose default schedule of an exact spectrum is the :func:`parity_ramp` (up to
+#: :data:`HOP_FIT_DEGREE`, where the degree ramp with its degree-6 hops stays, as the parity ramp was not measured
+#: there).  At degree 8 the degree ramp's truncated stages pull ρ of slowly falling degree powers (l⁻¹, l⁻¹·⁵) out
+#: of their basin (:doc:`/notes`).
 PARITY_FIT_DEGREE = 8
 
 
