@@ -145,10 +145,11 @@ def _request(args) -> FitRequest:
     """The fit the arguments ask for."""
     checkpoint = args.out / "checkpoint.h5" if args.checkpoint_every or args.resume else None
     options = FitOptions(optimizer=args.optimizer, weights=args.weights, area=args.area, starts=args.starts,
-                         start_budget=args.start_budget, stop_at_success=not args.all_starts, seed=args.seed, start_amplitude=args.amplitude,
-                         max_iter=args.max_iter, basin_hops=args.basin_hops, hop_grid=args.hop_grid,
-                         hop_tries=args.hop_tries, hop_extend=args.hop_extend, stage_basis_tol=args.stage_basis_tol,
-                         search_basis_tol=args.search_basis_tol, checkpoint_every=args.checkpoint_every,
+                         start_budget=args.start_budget, stop_at_success=not args.all_starts, seed=args.seed,
+                         start_amplitude=args.amplitude, max_iter=args.max_iter, basin_hops=args.basin_hops,
+                         hop_grid=args.hop_grid, hop_tries=args.hop_tries, hop_extend=args.hop_extend,
+                         stage_basis_tol=args.stage_basis_tol, search_basis_tol=args.search_basis_tol,
+                         checkpoint_every=args.checkpoint_every,
                          checkpoint_path=None if checkpoint is None else str(checkpoint))
     adaptive = (AdaptiveOptions(subdivisions=args.adaptive_start, growth=args.adaptive_growth, reg_kind=args.reg_kind)
                 if args.adaptive else None)

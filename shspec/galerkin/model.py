@@ -528,7 +528,8 @@ def _perturbed(params: np.ndarray, part: np.ndarray, noise: np.ndarray) -> np.nd
         if _certified(out[:part.size]):
             return out
         noise = noise * 0.5
-    return np.asarray(params, dtype=float)  # pragma: no cover - a positive ρ stays positive under a small enough change
+    # a positive ρ stays positive under a small enough change
+    return np.asarray(params, dtype=float)  # pragma: no cover
 
 
 def _certified(params) -> bool:

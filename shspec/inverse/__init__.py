@@ -22,5 +22,4 @@ from .target import Target, estimate_area
 __all__ = ["Alignment", "align", "load_result_summary", "save_result", "Objective", "eigenvalue_weights",
            "relative_residual", "summary", "write_result", "distinct_solutions", "fit", "FitOptions", "FitResult", "Stage", "StartResult",
            "parse_schedule", "Parametrization", "default_schedule", "numeig_ramp", "degree_ramp", "parity_ramp",
-           "Target",
-           "estimate_area", "target_pairs"]
+           "Target", "estimate_area", "target_pairs"]

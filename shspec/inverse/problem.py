@@ -27,7 +27,8 @@ from .parametrization import Parametrization
 from .results import StartResult
 from .schedule import Stage, default_schedule, default_start_budget
 
-__all__ = ["FitProblem", "StartProgress", "BudgetSpent", "BUDGET", "consistent_with_errors", "CHI2_SIGMAS", "SEARCH_MARGIN"]
+__all__ = ["FitProblem", "StartProgress", "BudgetSpent", "BUDGET", "consistent_with_errors", "CHI2_SIGMAS",
+           "SEARCH_MARGIN"]
 
 #: A fit is consistent with a target's errors when χ²/ν ≤ 1 + CHI2_SIGMAS·√(2/ν), ν = K − 1 eigenvalues: the mean
 #: of χ²/ν is 1 and its standard deviation √(2/ν) for Gaussian errors.
