@@ -558,7 +558,7 @@ def _schedule(p: _Planning, given):
     if text == "ramp":
         return numeig_ramp(p.target.numeig)
     if text == "parity-ramp":
-        if p.kind == "mesh":
+        if p.kind == "mesh":  # said while planning, before fit() would refuse the even stages
             raise InvalidArgumentError("the parity ramp holds odd degrees at 0: a mesh model has no degrees")
         return parity_ramp(p.target.numeig, p.lmax_factor)
     return parse_schedule(text)

@@ -266,9 +266,8 @@ class LogHarmonicModel(SpectralModel):
         out[ncoeffs(old):ncoeffs(new)] = noise[ncoeffs(old):]
         return out
 
-    def odd_parameters(self) -> np.ndarray:
-        """The u_lm of odd degree l ≥ 3 (degree 1 is the gauge, always 0): held at 0, ρ = exp(u) is even."""
-        return np.flatnonzero((degrees(self.lmax_factor) % 2 == 1) & (degrees(self.lmax_factor) >= 3))
+    #: The u_lm of odd degree l ≥ 3, as the a_lm of :class:`HarmonicModel`: held at 0, ρ = exp(u) is even.
+    odd_parameters = HarmonicModel.odd_parameters
 
     def release_odd(self, params: np.ndarray, level: int | None, rng: np.random.Generator,
                     amplitude: float) -> np.ndarray:

@@ -64,7 +64,8 @@ class FitOptions:
         state, and the next start runs.  The work is the race's (:mod:`~shspec.inverse.race`, the same on every
         machine), counted here in iterations of the search stage (the last stage of the schedule, on its search
         basis): a budget of 1500 is 1500 such iterations, or more iterations of the cheaper stages before it.
-        None (default): :func:`~shspec.inverse.schedule.default_start_budget`, a budget where one was measured
+        None (default): with the default schedule :func:`~shspec.inverse.schedule.default_start_budget`, a budget
+        where one was measured
         (fits of degree 8 and 9 with the default schedule), else none; 0: none.
     stop_at_success : bool
         Stop at a success (default): the starts race in rounds of ``race``, and the fit keeps the first round with

@@ -89,13 +89,15 @@ class FitProblem:
             init = finite_array(init, f"a starting point ({model.nparams} parameters of {model.describe()})",
                                 (model.nparams,)).copy()
         self.init = init
-        if options.schedule is not None:
+        default = options.schedule is None and init is None
+        if default:
+            schedule = default_schedule(model, target.numeig, target.errors is None)
+        elif options.schedule is not None:
             schedule = options.schedule
         else:
             # a given start already holds the coarse shape: one stage at full resolution, not a ramp that would
             # truncate it to the first level
-            schedule = (Stage(),) if init is not None else default_schedule(model, target.numeig,
-                                                                              target.errors is None)
+            schedule = (Stage(),)
         self.stages = schedule or (Stage(),)
         for st in self.stages:
             if st.numeig is not None and st.numeig > target.numeig:
@@ -129,14 +131,16 @@ class FitProblem:
             self.search = len(self.stages) - 2
         #: the work after which a start that has not succeeded ends (FitOptions.start_budget; None: no limit), in
         #: the race's units: the budget's iterations times the search stage's solve cost
-        self.work_budget = self._work_budget(options.start_budget, options.schedule if init is None else ())
+        budget = options.start_budget
+        if budget is None:
+            budget = default_start_budget(model, target.errors is None) if default else 0
+        self.work_budget = self._work_budget(budget)
         if options.progress and any(b is not None for b in self.bases):
             print("stage bases (degree:eigenvalues -> basis degree): " + ", ".join(
                 f"{st.lmax_factor}:{st.numeig or target.numeig} -> {b}" for st, b in zip(self.stages, self.bases)
                 if b is not None), file=sys.stderr, flush=True)
 
-    def _work_budget(self, budget: int | None, schedule) -> float | None:
-        budget = default_start_budget(self.model, schedule, self.target.errors is None) if budget is None else budget
+    def _work_budget(self, budget: int) -> float | None:
         if not budget:
             return None
         s = len(self.stages) - 1 if self.search is None else self.search

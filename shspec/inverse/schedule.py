@@ -268,19 +268,19 @@ def default_schedule(model: SpectralModel, numeig: int, exact: bool = True) -> t
 DEFAULT_START_BUDGET = 1500
 
 
-def default_start_budget(model: SpectralModel, schedule, exact: bool = True) -> int:
-    """The start budget of a fit whose options name none: :data:`DEFAULT_START_BUDGET` with the default schedule
-    (``schedule`` None) where it is the :func:`parity_ramp` (``exact``: a target without errors), 0 (none) elsewhere,
-    where no budget was measured.
+def default_start_budget(model: SpectralModel, exact: bool = True) -> int:
+    """The start budget of a fit that runs its :func:`default_schedule` and whose options name none:
+    :data:`DEFAULT_START_BUDGET` where that is the :func:`parity_ramp` (``exact``: a target without errors), 0 (none)
+    elsewhere, where no budget was measured.
 
     Examples
     --------
     >>> from shspec import HarmonicModel
     >>> from shspec.inverse.schedule import default_start_budget
-    >>> default_start_budget(HarmonicModel(12, 8), None), default_start_budget(HarmonicModel(12, 6), None)
+    >>> default_start_budget(HarmonicModel(12, 8)), default_start_budget(HarmonicModel(12, 6))
     (1500, 0)
     """
-    return DEFAULT_START_BUDGET if schedule is None and _parity_default(model, exact) else 0
+    return DEFAULT_START_BUDGET if _parity_default(model, exact) else 0
 
 
 def _parity_default(model: SpectralModel, exact: bool) -> bool:
