@@ -15,7 +15,9 @@ The spectrum is computed independently of the fit's Galerkin assembly: the mass 
 of ρ Y_i Y_j on a grid of degree 2·Lb + La (:func:`bench_forward.quadrature_mass`), the stiffness diag(l(l+1)),
 scipy's generalized eigensolver, on a basis Lb = 4 La + 12; its convergence is recorded as the largest relative
 change of the K eigenvalues from Lb − 4.  K is what the plan asks (2.5 per coefficient of ρ) or, with
-``--per-coefficient F``, F per coefficient.
+``--per-coefficient F``, F per coefficient.  A spectrum shorter than the plan's is refused by the defaults
+(``ShortSpectrumError``, naming the degree it supports): each truth records that answer (``default``), then the fit
+a user who insists gets (``--allow-short-spectrum``).
 
 Each fit is ``shspec fit --target spectrum:FILE --lmax-factor La --truth FILE --out DIR --quiet`` with every other
 option at its default, in a fresh process on the machine's cores, stopped at the degree's goal (degree 6: 2 min,
@@ -34,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import statistics
 import subprocess
 import sys
@@ -47,6 +50,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_forward import basis_on_grid, quadrature_mass  # noqa: E402
 from common import run_fit_command, updated_record, write_json  # noqa: E402
 
+from shspec.fitting.numeig_plan import SEARCH_NUMEIG_FACTOR  # noqa: E402
 from shspec.sphere.factor import ConformalFactor  # noqa: E402
 from shspec.sphere.grid import glq_grid  # noqa: E402
 from shspec.sphere.harmonics import degree_order, degrees  # noqa: E402
@@ -116,8 +120,12 @@ def run_truth(degree: int, index: int, per_coefficient: float, work: Path) -> di
     np.savetxt(rho, a)
     np.savetxt(spectrum, lam)
     command = ["fit", "--target", f"spectrum:{spectrum}", "--lmax-factor", str(degree), "--truth", str(rho),
-               "--out", str(out), "--quiet"]
-    record.update(numeig_given=numeig, spectrum_convergence=change, **run_fit_command(command, out, GOALS[degree]))
+               "--quiet", "--out"]
+    record.update(numeig_given=numeig, spectrum_convergence=change)
+    if numeig < round(SEARCH_NUMEIG_FACTOR * (degree + 1) ** 2):
+        record["default"] = short_spectrum_default(command, work / f"default_{name}")
+        command.insert(1, "--allow-short-spectrum")  # what a user who insists gets
+    record.update(run_fit_command([*command, str(out)], out, GOALS[degree]))
     power = record.get("power_error")
     record["recovered"] = bool(power is not None and power <= RECOVERED)
     record["goal_met"] = bool(record["recovered"] and record["wall_s"] <= GOALS[degree])
@@ -128,6 +136,15 @@ def run_truth(degree: int, index: int, per_coefficient: float, work: Path) -> di
     return record
 
 
+def short_spectrum_default(command: list, out: Path) -> dict:
+    """The defaults' answer to a spectrum shorter than the plan's: refused before any fit, naming the degree it
+    supports (``ShortSpectrumError``), or not."""
+    answer = run_fit_command([*command, str(out)], out, 60.0)
+    named = re.search(r"support degree (\d+)", answer.get("stderr", ""))
+    return {"refused": answer["exit_code"] == 1 and named is not None and not (out / "summary.json").exists(),
+            "supported_degree": None if named is None else int(named.group(1)), "wall_s": answer["wall_s"]}
+
+
 def degree_summary(rows: list, degree: int) -> dict:
     walls = sorted(r["wall_s"] for r in rows)
     return {"truths": len(rows), "recovered": sum(r["recovered"] for r in rows),
@@ -135,6 +152,9 @@ def degree_summary(rows: list, degree: int) -> dict:
             "within_goal": sum(r["goal_met"] for r in rows), "goal_wall_s": GOALS[degree],
             "wall_median_s": statistics.median(walls), "wall_p90_s": walls[int(0.9 * (len(walls) - 1))],
             "overconfident": sum(r["overconfident"] for r in rows),
+            **({"refused_by_default": sum(r["default"]["refused"] for r in rows),
+                "supported_degrees_named": sorted({r["default"]["supported_degree"] for r in rows})}
+               if all("default" in r for r in rows) else {}),
             "by_law": {law: f"{sum(r['recovered'] for r in rows if r['law'] == law)} of "
                             f"{sum(r['law'] == law for r in rows)}" for law in LAWS}}
 

@@ -37,6 +37,7 @@ __all__ = [
     "TruncationWarning",
     "TopologyError",
     "BeyondBasisError",
+    "ShortSpectrumError",
 ]
 
 
@@ -266,6 +267,29 @@ class BeyondBasisError(ShspecError, ValueError):
     >>> issubclass(BeyondBasisError, ValueError)
     True
     """
+
+
+class ShortSpectrumError(InvalidArgumentError):
+    """A target with fewer eigenvalues than a fit of the degree asked needs: the message names the degree they
+    support (:attr:`supported_degree`) and how to fit either.
+
+    Examples
+    --------
+    >>> from shspec import ShortSpectrumError
+    >>> from shspec.fitting import prepare_fit
+    >>> try:
+    ...     prepare_fit([0.0, 2.0, 2.0, 2.0, 6.0, 6.0], lmax_factor=6, progress=False)
+    ... except ShortSpectrumError as exc:
+    ...     print(exc.supported_degree)
+    0
+    """
+
+    def __init__(self, message: str, supported_degree: int):
+        super().__init__(message)
+        self.supported_degree = supported_degree
+
+    def __reduce__(self):  # the default pickles the message only, which __init__ cannot take alone
+        return type(self), (str(self), self.supported_degree)
 
 
 class ShspecWarning(UserWarning):

@@ -99,6 +99,9 @@ def _add_run_options(runs, d: FitOptions) -> None:
                       help="start from a result.h5, summary.json, .npy or text column")
     runs.add_argument("--quiet", action="store_true", help="no progress display")
     runs.add_argument("--allow-any-genus", action="store_true", help="fit a target whose heat trace says genus != 0")
+    runs.add_argument("--allow-short-spectrum", action="store_true",
+                      help="fit the degree asked with fewer eigenvalues than planned (default: refused, naming the "
+                      "degree they support)")
 
 
 def _add_mesh_options(mesh) -> None:
@@ -158,6 +161,7 @@ def _request(args) -> FitRequest:
                       subdivisions=args.subdivisions, numeig_tol=args.numeig_tol, reg_kind=args.reg_kind,
                       log_factors=args.log_factors, adaptive=adaptive, schedule=args.schedule,
                       hop_degree=args.hop_degree, init=args.init, allow_any_genus=args.allow_any_genus,
+                      allow_short_spectrum=args.allow_short_spectrum,
                       options=options, workers="auto" if args.workers is None else args.workers,
                       scheduler=args.scheduler, progress=not args.quiet)
 

@@ -9,8 +9,9 @@ What is planned, and why:
   :func:`~shspec.fitting.surface_plan.plan_surface_fit`, which predicts the error of ρ against the mesh's cMCF
   factors and says when no harmonic basis can reach them;
 * a harmonic ρ of degree La (K not given): K and Lb of :func:`~shspec.fitting.numeig_plan.plan_fit` (2.5
-  eigenvalues per coefficient, a basis on which the truth itself succeeds); a target with fewer eigenvalues is
-  fitted with what it has, and the plan says which degree those support;
+  eigenvalues per coefficient, a basis on which the truth itself succeeds); a spectrum with fewer eigenvalues is
+  refused before any fit (:class:`~shspec.errors.ShortSpectrumError`) with the degree those support
+  (``lmax_factor="auto"`` fits it), unless ``allow_short_spectrum`` asks to fit the degree asked anyway;
 * a mesh fit (per-vertex factors): 95 % of the vertices in eigenvalues up to 1500 vertices, else those the mesh
   resolves (``numeig="auto"``), and the study's penalty R = 0.05;
 * a target with errors (noise, a spectrum file's error column, a mesh's discretization): the error those errors
@@ -25,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import BeyondBasisError, InvalidArgumentError
+from ..errors import BeyondBasisError, InvalidArgumentError, ShortSpectrumError
 from ..galerkin.log_model import LogHarmonicModel
 from ..galerkin.model import HarmonicModel
 from ..inverse.identifiability import identifiability
@@ -358,6 +359,9 @@ def _plan_degrees(p: _Planning) -> None:
     if r.numeig is not None or p.kind == "mesh":
         _given_numeig(p)
         return
+    have, floor = _spectrum_size(r), round(SEARCH_NUMEIG_FACTOR * (la + 1) ** 2)
+    if have is not None and have < floor and not r.allow_short_spectrum:  # short whatever K the plan finds
+        _short_spectrum(p, have, floor)
     # the log model takes the plan of a harmonic rho of the same degree: the same number of unknowns
     plan = plan_fit(la, random_centred_coefficients(r.options.seed, la, 0.2))
     if plan.numeig is None:
@@ -368,19 +372,42 @@ def _plan_degrees(p: _Planning) -> None:
                       "as asked" if r.lmax is not None else "the planned K converged at it")
 
 
-def _given_eigenvalues(r: FitRequest) -> int:
-    """How many eigenvalues a spectrum's target brings (lmax_factor="auto" needs a spectrum of a given size)."""
+def _spectrum_size(r: FitRequest) -> int | None:
+    """How many eigenvalues a spectrum's target brings; None for a target computed to the K asked (a mesh, a ρ)."""
     what = r.target
     if isinstance(what, str) and what.startswith("spectrum:"):
-        have = read_spectrum_file(what.partition(":")[2]).eigenvalues.size
-    elif isinstance(what, Target):
-        have = what.numeig
-    elif isinstance(what, (np.ndarray, list, tuple)):
-        have = np.size(what)
-    else:
+        return read_spectrum_file(what.partition(":")[2]).eigenvalues.size
+    if isinstance(what, Target):
+        return what.numeig
+    if isinstance(what, (np.ndarray, list, tuple)):
+        return int(np.size(what))
+    return None
+
+
+def _given_eigenvalues(r: FitRequest) -> int:
+    """How many eigenvalues a spectrum's target brings to the fit (lmax_factor="auto" needs a spectrum)."""
+    have = _spectrum_size(r)
+    if have is None:
         raise InvalidArgumentError("lmax_factor='auto' (--lmax-factor auto) picks the degree a given spectrum "
                                    "supports: give a spectrum (spectrum:FILE, eigenvalues or a Target)")
     return min(have, r.numeig) if isinstance(r.numeig, int) else have
+
+
+def _short_spectrum(p: _Planning, have: int, planned: int) -> None:
+    """Refuse a target of fewer eigenvalues than the plan asks for at its degree, naming the degree they support
+    and what the benchmark measured with so few; with ``allow_short_spectrum``, say so and go on (the plan's
+    statement says what the fit can expect)."""
+    la = p.lmax_factor
+    supported = max(0, int(np.sqrt(have / SEARCH_NUMEIG_FACTOR)) - 1)
+    given = (f"the target has {have} eigenvalues; the plan of degree {la} asks for {planned} "
+             f"({SEARCH_NUMEIG_FACTOR:g} per coefficient of rho): {have} support degree {supported}")
+    if p.request.allow_short_spectrum:
+        p.say(f"warning: {given}; fitted at degree {la} as asked (allow_short_spectrum)")
+        return
+    fix = ("Fit that degree with lmax_factor='auto' (--lmax-factor auto)" if supported >= 2 else
+           f"Give at least {round(SEARCH_NUMEIG_FACTOR * 9)} eigenvalues (degree 2)")
+    raise ShortSpectrumError(f"{given}. {fix}, or fit degree {la} with the {have} given: allow_short_spectrum=True "
+                             f"(--allow-short-spectrum); {expectation(la, have)[1]}", supported)
 
 
 def _given_numeig(p: _Planning) -> None:
@@ -457,10 +484,7 @@ def _check_numeig(p: _Planning) -> None:
         return
     planned, have = p.numeig, p.target.numeig
     if planned is not None and have < planned and p.numeig_plan is not None:
-        supported = int(np.sqrt(have / SEARCH_NUMEIG_FACTOR)) - 1
-        p.say(f"warning: the target has only {have} eigenvalues; the plan asked for {planned} (at "
-              f"{SEARCH_NUMEIG_FACTOR:g} per coefficient of rho, {have} support degree {supported}: "
-              "lmax_factor='auto', --lmax-factor auto, fits that degree)")
+        _short_spectrum(p, have, planned)
 
 
 def _auto_numeig(p: _Planning) -> None:

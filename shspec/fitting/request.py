@@ -76,6 +76,10 @@ class FitRequest:
         :mod:`shspec.fitting.initial`) or the model's parameters.
     allow_any_genus : bool
         Fit a spectrum whose heat trace says its genus is not 0.
+    allow_short_spectrum : bool
+        Fit the degree asked with a spectrum of fewer eigenvalues than its plan asks for (2.5 per coefficient of
+        ρ); by default such a spectrum is refused with the degree it supports
+        (:class:`~shspec.errors.ShortSpectrumError`).
     options : FitOptions
         The search; its ``reg`` and ``schedule`` are those above when given.
     workers : int, "auto" or None
@@ -114,6 +118,7 @@ class FitRequest:
     hop_degree: int | None = None
     init: object = field(default=None, repr=False)
     allow_any_genus: bool = False
+    allow_short_spectrum: bool = False
     options: FitOptions = field(default_factory=FitOptions)
     workers: int | str | None = None
     scheduler: str | None = None

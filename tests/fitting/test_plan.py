@@ -11,7 +11,7 @@ import pytest
 
 from shspec import fit, prepare_fit
 from shspec.cli import main
-from shspec.errors import InvalidArgumentError
+from shspec.errors import InvalidArgumentError, ShortSpectrumError
 from shspec.fitting import FitPlan, FitRequest, blob_factor, harmonic_target, initial_parameters, read_initial
 from shspec.galerkin import HarmonicModel, LogHarmonicModel
 from shspec.inverse import FitOptions, Target, write_result
@@ -61,11 +61,30 @@ def test_a_spectrum_with_errors_of_its_own_refuses_a_noise_too(tmp_path):
                  "--out", str(tmp_path / "out")]) == 1
 
 
-def test_a_planned_k_the_target_lacks_is_said_with_the_degree_it_supports():
-    lam = harmonic_target(blob_factor(), 16, 60).eigenvalues
-    plan = prepare_fit(lam, lmax_factor=6, progress=False)  # the plan asks for 2.5 * 49 = 122
-    assert plan.target.numeig == 60
-    assert any("only 60 eigenvalues; the plan asked for 122" in n and "support degree 3" in n for n in plan.notes)
+def test_a_spectrum_shorter_than_its_degree_needs_is_refused_with_the_degree_it_supports(tmp_path, capsys):
+    lam = harmonic_target(blob_factor(), 16, 74).eigenvalues
+    # 1.5 per coefficient at degree 6: the plan asks for 2.5 * 49 = 122; 74 support (La + 1)^2 <= 29.6, La = 4
+    with pytest.raises(ShortSpectrumError, match="has 74 eigenvalues; the plan of degree 6 asks for 122") as caught:
+        prepare_fit(lam, lmax_factor=6, progress=False)
+    assert caught.value.supported_degree == 4 and isinstance(caught.value, InvalidArgumentError)
+    assert "--lmax-factor auto" in str(caught.value) and "--allow-short-spectrum" in str(caught.value)
+    # what the fit of the degree asked can expect is said beside it: the benchmark's run at 1.5 per coefficient
+    assert "with 1.5 eigenvalues per coefficient" in str(caught.value)
+    plan = prepare_fit(lam, lmax_factor=6, allow_short_spectrum=True, progress=False)
+    assert plan.target.numeig == 74 and plan.choice("lmax_factor").value == 6
+    said = [n for n in plan.notes if n.startswith("warning: the target has 74") and "support degree 4" in n]
+    assert len(said) == 1
+    path = tmp_path / "spectrum.txt"
+    np.savetxt(path, lam)
+    assert main(["fit", "--target", f"spectrum:{path}", "--lmax-factor", "6", "--out", str(tmp_path / "out"),
+                 "--quiet"]) == 1
+    assert "support degree 4" in capsys.readouterr().err and not (tmp_path / "out" / "summary.json").exists()
+    # a default degree (15) is refused alike; too few for any degree says how many degree 2 needs
+    with pytest.raises(ShortSpectrumError, match="support degree 4"):
+        prepare_fit(lam, progress=False)
+    with pytest.raises(ShortSpectrumError, match="at least 22 eigenvalues") as caught:
+        prepare_fit(lam[:10], lmax_factor="auto", progress=False)
+    assert caught.value.supported_degree == 1
 
 
 @pytest.mark.parametrize("fields, words", [
