@@ -100,8 +100,7 @@ def _add_run_options(runs, d: FitOptions) -> None:
     runs.add_argument("--quiet", action="store_true", help="no progress display")
     runs.add_argument("--allow-any-genus", action="store_true", help="fit a target whose heat trace says genus != 0")
     runs.add_argument("--allow-short-spectrum", action="store_true",
-                      help="fit the degree asked with fewer eigenvalues than planned (default: refused, naming the "
-                      "degree they support)")
+                      help="fit La with fewer eigenvalues than planned")
 
 
 def _add_mesh_options(mesh) -> None:
@@ -113,7 +112,7 @@ def _add_mesh_options(mesh) -> None:
                       help="penalty of mesh fits: " + ", ".join(REGULARIZER_KINDS))
     mesh.add_argument("--log-factors", action=argparse.BooleanOptionalAction, default=True,
                       help="fit s = log c rather than c")
-    mesh.add_argument("--adaptive", action="store_true", help="start from an icosphere and refine it as the fit goes")
+    mesh.add_argument("--adaptive", action="store_true", help="fit from an icosphere refined as the fit goes")
     mesh.add_argument("--adaptive-start", type=int, default=2, metavar="N", help="icosphere subdivisions of the first stage")
     mesh.add_argument("--adaptive-growth", type=float, default=AdaptiveOptions.growth, metavar="X",
                       help="vertex count ratio between adaptive stages")
