@@ -99,8 +99,7 @@ def _add_run_options(runs, d: FitOptions) -> None:
                       help="start from a result.h5, summary.json, .npy or text column")
     runs.add_argument("--quiet", action="store_true", help="no progress display")
     runs.add_argument("--allow-any-genus", action="store_true", help="fit a target whose heat trace says genus != 0")
-    runs.add_argument("--allow-short-spectrum", action="store_true",
-                      help="fit La with fewer eigenvalues than planned")
+    runs.add_argument("--allow-short-spectrum", action="store_true", help="fit La with fewer eigenvalues than planned")
 
 
 def _add_mesh_options(mesh) -> None:
@@ -155,14 +154,13 @@ def _request(args) -> FitRequest:
                          checkpoint_path=None if checkpoint is None else str(checkpoint))
     adaptive = (AdaptiveOptions(subdivisions=args.adaptive_start, growth=args.adaptive_growth, reg_kind=args.reg_kind)
                 if args.adaptive else None)
-    return FitRequest(args.target, model=args.model, lmax_factor=args.lmax_factor, lmax=args.lmax,
-                      numeig=args.numeig, noise=args.noise, truth=args.truth, reg=args.reg, source=args.source,
+    return FitRequest(args.target, model=args.model, lmax_factor=args.lmax_factor, lmax=args.lmax, numeig=args.numeig,
+                      noise=args.noise, truth=args.truth, reg=args.reg, source=args.source, init=args.init,
                       subdivisions=args.subdivisions, numeig_tol=args.numeig_tol, reg_kind=args.reg_kind,
-                      log_factors=args.log_factors, adaptive=adaptive, schedule=args.schedule,
-                      hop_degree=args.hop_degree, init=args.init, allow_any_genus=args.allow_any_genus,
-                      allow_short_spectrum=args.allow_short_spectrum,
-                      options=options, workers="auto" if args.workers is None else args.workers,
-                      scheduler=args.scheduler, progress=not args.quiet)
+                      log_factors=args.log_factors, adaptive=adaptive, schedule=args.schedule, options=options,
+                      hop_degree=args.hop_degree, allow_any_genus=args.allow_any_genus, scheduler=args.scheduler,
+                      allow_short_spectrum=args.allow_short_spectrum, progress=not args.quiet,
+                      workers="auto" if args.workers is None else args.workers)
 
 
 def _fit(args) -> int:
