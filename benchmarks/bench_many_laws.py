@@ -50,7 +50,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_forward import basis_on_grid, quadrature_mass  # noqa: E402
 from common import run_fit_command, updated_record, write_json  # noqa: E402
 
-from shspec.fitting.numeig_plan import SEARCH_NUMEIG_FACTOR  # noqa: E402
+from shspec.fitting.numeig_plan import search_numeig  # noqa: E402
 from shspec.sphere.factor import ConformalFactor  # noqa: E402
 from shspec.sphere.grid import glq_grid  # noqa: E402
 from shspec.sphere.harmonics import degree_order, degrees  # noqa: E402
@@ -122,7 +122,7 @@ def run_truth(degree: int, index: int, per_coefficient: float, work: Path) -> di
     command = ["fit", "--target", f"spectrum:{spectrum}", "--lmax-factor", str(degree), "--truth", str(rho),
                "--quiet", "--out"]
     record.update(numeig_given=numeig, spectrum_convergence=change)
-    if numeig < round(SEARCH_NUMEIG_FACTOR * (degree + 1) ** 2):
+    if numeig < search_numeig(degree):
         record["default"] = short_spectrum_default(command, work / f"default_{name}")
         command.insert(1, "--allow-short-spectrum")  # what a user who insists gets
     record.update(run_fit_command([*command, str(out)], out, GOALS[degree]))

@@ -45,7 +45,8 @@ from ..core.threads import reproducible_call
 from ..inverse.identifiability import identifiability_by_numeig
 from ..inverse.options import FitOptions
 
-__all__ = ["NumeigPlan", "converged_basis_degree", "candidate_numeigs", "plan_numeig", "plan_fit", "PLANNED_ACCURACY"]
+__all__ = ["NumeigPlan", "converged_basis_degree", "candidate_numeigs", "plan_numeig", "plan_fit", "PLANNED_ACCURACY",
+           "search_numeig", "supported_degree"]
 
 
 #: Degrees of basis added per Gaunt table while :func:`converged_basis_degree` scans upwards.
@@ -266,6 +267,31 @@ PLANNED_ACCURACY = 1e-8
 SEARCH_NUMEIG_FACTOR = 2.5
 
 
+def search_numeig(lmax_factor: int) -> int:
+    """The fewest eigenvalues :func:`plan_fit` asks for at degree La: :data:`SEARCH_NUMEIG_FACTOR` per coefficient.
+
+    Examples
+    --------
+    >>> from shspec.fitting.numeig_plan import search_numeig
+    >>> search_numeig(6), search_numeig(8)
+    (122, 202)
+    """
+    return int(round(SEARCH_NUMEIG_FACTOR * (lmax_factor + 1) ** 2))
+
+
+def supported_degree(numeig: int) -> int:
+    """The degree La that ``numeig`` eigenvalues support at :data:`SEARCH_NUMEIG_FACTOR` per coefficient (0 for
+    fewer than a degree-1 fit would take).
+
+    Examples
+    --------
+    >>> from shspec.fitting.numeig_plan import supported_degree
+    >>> supported_degree(74), supported_degree(150), supported_degree(6)
+    (4, 6, 0)
+    """
+    return max(0, int(np.sqrt(numeig / SEARCH_NUMEIG_FACTOR)) - 1)
+
+
 @reproducible_call
 def plan_fit(lmax_factor: int, reference=None, options: FitOptions | None = None) -> NumeigPlan:
     """The plan of ``shspec fit`` without ``--numeig``: :func:`plan_numeig` for ρ to :data:`PLANNED_ACCURACY` from
@@ -295,4 +321,4 @@ def plan_fit(lmax_factor: int, reference=None, options: FitOptions | None = None
     # the basis is scanned for the K of the search alone (scanning it for the identified K too cost a third of the
     # plan: 9.2 s at degree 12)
     return plan_numeig(la, reference, noise=options.residual_tol, accuracy=PLANNED_ACCURACY,
-                       basis_tol=options.success_tol, min_numeig=int(round(SEARCH_NUMEIG_FACTOR * (la + 1) ** 2)))
+                       basis_tol=options.success_tol, min_numeig=search_numeig(la))

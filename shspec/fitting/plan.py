@@ -47,7 +47,7 @@ from ..sphere.random import random_centred_coefficients
 from .adaptive import adaptive_fit
 from .expected import Measured, expectation
 from .initial import initial_parameters, read_initial, read_truth
-from .numeig_plan import SEARCH_NUMEIG_FACTOR, NumeigPlan, plan_fit
+from .numeig_plan import SEARCH_NUMEIG_FACTOR, NumeigPlan, plan_fit, search_numeig, supported_degree
 from .request import FitRequest
 from .surface_plan import TRUTH_DEGREE, SurfacePlan, default_numeig, plan_surface_fit
 from .targets import (MeshTarget, harmonic_target, mesh_target, parse_target, refined_target, subdivision_changes,
@@ -346,7 +346,7 @@ def _plan_degrees(p: _Planning) -> None:
     la = r.lmax_factor if r.lmax_factor not in (None, "auto") else DEFAULT_LMAX_FACTOR
     if r.lmax_factor == "auto":
         have = _given_eigenvalues(r)
-        la = max(2, int(np.sqrt(have / SEARCH_NUMEIG_FACTOR)) - 1)
+        la = max(2, supported_degree(have))
         p.lmax_factor = p.choose("lmax_factor", la, f"the degree {have} eigenvalues support at "
                                  f"{SEARCH_NUMEIG_FACTOR:g} per coefficient of rho")
     elif r.lmax_factor is not None:
@@ -359,7 +359,7 @@ def _plan_degrees(p: _Planning) -> None:
     if r.numeig is not None or p.kind == "mesh":
         _given_numeig(p)
         return
-    have, floor = _spectrum_size(r), round(SEARCH_NUMEIG_FACTOR * (la + 1) ** 2)
+    have, floor = _spectrum_size(r), search_numeig(la)
     if have is not None and have < floor and not r.allow_short_spectrum:  # short whatever K the plan finds
         _short_spectrum(p, have, floor)
     # the log model takes the plan of a harmonic rho of the same degree: the same number of unknowns
@@ -398,14 +398,14 @@ def _short_spectrum(p: _Planning, have: int, planned: int) -> None:
     and what the benchmark measured with so few; with ``allow_short_spectrum``, say so and go on (the plan's
     statement says what the fit can expect)."""
     la = p.lmax_factor
-    supported = max(0, int(np.sqrt(have / SEARCH_NUMEIG_FACTOR)) - 1)
+    supported = supported_degree(have)
     given = (f"the target has {have} eigenvalues; the plan of degree {la} asks for {planned} "
              f"({SEARCH_NUMEIG_FACTOR:g} per coefficient of rho): {have} support degree {supported}")
     if p.request.allow_short_spectrum:
         p.say(f"warning: {given}; fitted at degree {la} as asked (allow_short_spectrum)")
         return
     fix = ("Fit that degree with lmax_factor='auto' (--lmax-factor auto)" if supported >= 2 else
-           f"Give at least {round(SEARCH_NUMEIG_FACTOR * 9)} eigenvalues (degree 2)")
+           f"Give at least {search_numeig(2)} eigenvalues (degree 2)")
     raise ShortSpectrumError(f"{given}. {fix}, or fit degree {la} with the {have} given: allow_short_spectrum=True "
                              f"(--allow-short-spectrum); {expectation(la, have)[1]}", supported)
 
