@@ -290,16 +290,19 @@ class ConformalFactor:
 
         ρ is evaluated on a GLQ grid (degree max(2·La, 64), or ``grid_lmax``) and bounded below between the nodes by
         :func:`grid_lower_bound`, which needs only the node values and the bounds G >= |∇ρ|, H >= ‖∇²ρ‖ of
-        :func:`derivative_bounds`; the bound is of second order in the node spacing.  When it is not positive, local
-        minimizations start from the lowest nodes of the inconclusive cells: a negative value found there is
-        reported, and otherwise the grid degree is raised (at least doubled, up to ``max_grid_lmax``) until the bound
-        is positive.  The cost is one grid evaluation (0.25 ms at La = 15 and 30) for a ρ clearly away from 0; a ρ
-        with a deep narrow minimum (the boost k = 5: min/mean = 1/600) needs grids up to degree 512 (about 0.1 s).
+        :func:`derivative_bounds`; the bound is of second order in the node spacing.  When it is not positive the
+        grid degree is raised (at least doubled, up to ``max_grid_lmax``) until the bound is positive or a node is
+        not; a grid of degree 128 or 256 costs a fraction of a millisecond at La <= 15, a local minimization tens of
+        milliseconds (basin-hop moves of a fit bring ρ near 0 often).  Only a ρ still inconclusive on the finest grid is searched between its nodes, by
+        local minimizations from the lowest nodes of the weakest cells, and a node <= 0 is polished by one, so that
+        the error says where ρ is smallest.  The cost is one grid evaluation (0.25 ms at La = 15 and 30) for a ρ
+        clearly away from 0; a ρ with a deep narrow minimum (the boost k = 5: min/mean = 1/600) needs grids up to
+        degree 512 (about 0.1 s).
 
         Returns
         -------
         Minimum
-            The smallest value found and where, with the certified ``lower_bound`` (> 0).
+            The smallest node value of the grid that certified ρ, and where, with its ``lower_bound`` (> 0).
 
         Raises
         ------
@@ -316,8 +319,10 @@ class ConformalFactor:
                           bound)
             if bound > 0 and low.value > 0:
                 return low
-            if low.value > 0:
+            if low.value > 0 and grid.lmax >= max_grid_lmax:
                 low = self._search_inconclusive(values, grid, cells, bound)
+            elif not low.value > 0:
+                low = Minimum(*self._local_minimum(grid.colat[i], grid.lon[j], low.value), bound)
             if not low.value > 0:
                 raise NotPositiveError(
                     f"{self.name} is not a metric: it is not positive everywhere; its minimum is {low} "
@@ -336,7 +341,9 @@ class ConformalFactor:
         """The lowest local minimum reached from the lowest nodes of the (up to ``starts``) weakest cells."""
         best = Minimum(float("inf"), 0.0, 0.0, bound)
         nrow, ncol = values.shape
-        for flat in np.argsort(cells, axis=None)[:starts]:
+        flat_cells = cells.ravel()
+        weakest = np.argpartition(flat_cells, min(starts, flat_cells.size - 1))[:starts]  # not a sort of 2M cells
+        for flat in weakest[np.argsort(flat_cells[weakest], kind="stable")]:
             r, c = np.unravel_index(int(flat), cells.shape)
             if cells[r, c] > 0:
                 break
