@@ -13,6 +13,11 @@ Cases (``--only NAME`` runs those whose name contains NAME; the others keep thei
   with validate's plan: the best degree-La log expansion of the cMCF factors (the floor) and the harmonic fits from
   it and from two random starts, each with its χ²/ν against the planned errors, its aligned error and the Hausdorff
   distance of its re-embedding.
+* ``stars-a``, ``stars-b``, ``stars-c``: three more smooth stars of 10242 vertices for issue 49, chosen before any
+  was run: r = exp(A f / max |f|), f random of degree D (degree-l part divided by l + 1) of seed S, with (S, D, A) =
+  (31, 3, 0.45), (32, 4, 0.7), (33, 3, 0.9), meant to span cMCF factor ranges of about 1:3 to 1:8 (whatever
+  they turn out to be is recorded); ``shspec fit`` and ``shspec validate`` with their defaults, each stopped at
+  the goal of 15 minutes.
 * ``spot-mesh``: ``shspec fit --target mesh:spot_600 --model mesh --out D``: the log-factor correlation.
 * ``validate-spot``, ``validate-blub``: ``shspec validate`` on the full-resolution meshes: a complete report, or the
   one-line diagnosis of the fit step.
@@ -37,7 +42,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import RESULTS, load_average, main_with_only  # noqa: E402
 
-from shspec.mesh.mesh_files import save_mesh  # noqa: E402
+from shspec.mesh.cmcf import cmcf  # noqa: E402
+from shspec.mesh.mesh_files import load_mesh, save_mesh  # noqa: E402
 from shspec.mesh.shapes import icosphere  # noqa: E402
 from shspec.mesh.triangle_mesh import TriangleMesh  # noqa: E402
 from shspec.sphere.evaluate import sample_harmonic  # noqa: E402
@@ -48,25 +54,35 @@ GOALS = {"star_wall_s": 900, "star_log_correlation": 0.98, "star_factor_error": 
          "spot_mesh_log_correlation": 0.95}
 
 
-def star_mesh(path: Path) -> Path:
-    """The star-shaped test surface of the module notes, written to ``path``."""
+#: The stars of issue 49 (module notes): seed, degree and amplitude of log r.
+STARS = {"stars-a": (31, 3, 0.45), "stars-b": (32, 4, 0.7), "stars-c": (33, 3, 0.9)}
+
+
+def star_mesh(path: Path, seed: int = 7, degree: int = 3, amplitude: float = 0.75) -> Path:
+    """A star-shaped surface of the module notes (by default the ``star`` case's), written to ``path``."""
     ico = icosphere(5)
-    a = np.random.default_rng(7).standard_normal(16)
+    a = np.random.default_rng(seed).standard_normal((degree + 1) ** 2)
     a[0] = 0.0
-    for l in range(4):
+    for l in range(degree + 1):
         a[l * l:(l + 1) ** 2] /= 1 + l
     f = sample_harmonic(a, ico.vertices)
-    r = np.exp(0.75 * f / np.abs(f).max())
+    r = np.exp(amplitude * f / np.abs(f).max())
     return save_mesh(TriangleMesh(ico.vertices * r[:, None], ico.faces), path)
 
 
-def shspec(*args: str) -> dict:
-    """Run ``python -m shspec ARGS``; its exit code, wall time and the last lines of its stderr."""
+def shspec(*args: str, timeout: float | None = None) -> dict:
+    """Run ``python -m shspec ARGS`` (stopped after ``timeout`` seconds); its exit code, wall time and the last
+    lines of its stderr."""
     t = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "shspec", *args], capture_output=True, text=True)
-    lines = [x for x in done.stderr.replace("\r", "\n").splitlines() if x.strip() and "it/s]" not in x
+    try:
+        done = subprocess.run([sys.executable, "-m", "shspec", *args], capture_output=True, text=True,
+                              timeout=timeout)
+        code, stderr = done.returncode, done.stderr
+    except subprocess.TimeoutExpired as stopped:
+        code, stderr = None, stopped.stderr.decode() if isinstance(stopped.stderr, bytes) else stopped.stderr or ""
+    lines = [x for x in stderr.replace("\r", "\n").splitlines() if x.strip() and "it/s]" not in x
              and "vectors/s]" not in x]
-    return {"command": "shspec " + " ".join(args), "exit_code": done.returncode,
+    return {"command": "shspec " + " ".join(args), "exit_code": code, "stopped_at_timeout": code is None,
             "wall_s": time.perf_counter() - t, "stderr_tail": lines[-8:]}
 
 
@@ -90,6 +106,32 @@ def star_validate(work: Path) -> dict:
             "hausdorff_fit": (s["fit_embedding"] or {}).get("hausdorff_relative"), "fit": s["fit"]}
 
 
+def one_of_the_stars(name: str):
+    """Fit and validate of one of :data:`STARS`, each stopped at the goal; the star's cMCF factor range."""
+    def case(work: Path) -> dict:
+        mesh = star_mesh(work / f"{name}.obj", *STARS[name])
+        out = {"seed_degree_amplitude": STARS[name]}
+        for command in ("fit", "validate"):
+            run = shspec(command, "--target", f"mesh:{mesh}", "--out", str(work / command), "--quiet",
+                         timeout=GOALS["star_wall_s"])
+            summary = work / command / "summary.json"
+            s = json.loads(summary.read_text()) if summary.exists() else None
+            if s is not None and command == "fit":
+                run.update(successes=s["successes"], surface=s["surface"],
+                           plan={k: s["surface_plan"][k] for k in ("lmax_factor", "numeig", "lmax", "predicted")})
+            elif s is not None:
+                run.update(status=s["status"], hausdorff_cmcf=s["hausdorff_relative"],
+                           hausdorff_fit=(s["fit_embedding"] or {}).get("hausdorff_relative"))
+            run["within_goal"] = bool(s is not None and run["exit_code"] == 0
+                                      and run["wall_s"] <= GOALS["star_wall_s"])
+            out[command] = run
+        factors = cmcf(load_mesh(mesh)).factors  # after the timed runs
+        out["cmcf_factor_range"] = [float(factors.min()), float(factors.max())]
+        out["cmcf_factor_ratio"] = float(factors.max() / factors.min())
+        return out
+    return case
+
+
 def consistent_fits(work: Path) -> dict:
     from shspec.embed.distances import surface_distance
     from shspec.embed.embed import embed
@@ -97,8 +139,6 @@ def consistent_fits(work: Path) -> dict:
     from shspec.inverse import FitOptions, fit
     from shspec.inverse.output import surface_record
     from shspec.fitting.surface_plan import TRUTH_DEGREE, default_numeig, log_floor, plan_surface_fit
-    from shspec.mesh.cmcf import cmcf
-    from shspec.mesh.mesh_files import load_mesh
     from shspec.fitting.targets import mesh_target, refined_target
 
     mesh = load_mesh(star_mesh(work / "star10k.obj"))
@@ -144,7 +184,8 @@ def validate_shipped(name: str):
 
 
 CASES = {"star-validate": star_validate, "consistent-fits": consistent_fits, "spot-mesh": spot_mesh, "validate-blub": validate_shipped("blub"),
-         "validate-spot": validate_shipped("spot"), "star": star}
+         "validate-spot": validate_shipped("spot"), "star": star,
+         **{name: one_of_the_stars(name) for name in STARS}}
 
 
 def run(only: str | None) -> dict:
