@@ -112,7 +112,8 @@ def one_of_the_stars(name: str):
         mesh = star_mesh(work / f"{name}.obj", *STARS[name])
         out = {"seed_degree_amplitude": STARS[name]}
         for command in ("fit", "validate"):
-            run = shspec(command, "--target", f"mesh:{mesh}", "--out", str(work / command), "--quiet",
+            quiet = ["--quiet"] if command == "fit" else []  # validate has no progress display to turn off
+            run = shspec(command, "--target", f"mesh:{mesh}", "--out", str(work / command), *quiet,
                          timeout=GOALS["star_wall_s"])
             summary = work / command / "summary.json"
             s = json.loads(summary.read_text()) if summary.exists() else None
