@@ -290,14 +290,14 @@ class ConformalFactor:
 
         ρ is evaluated on a GLQ grid (degree max(2·La, 64), or ``grid_lmax``) and bounded below between the nodes by
         :func:`grid_lower_bound`, which needs only the node values and the bounds G >= |∇ρ|, H >= ‖∇²ρ‖ of
-        :func:`derivative_bounds`; the bound is of second order in the node spacing.  When it is not positive the
-        grid degree is raised (at least doubled, up to ``max_grid_lmax``) until the bound is positive or a node is
-        not; a grid of degree 128 or 256 costs a fraction of a millisecond at La <= 15, a local minimization tens of
-        milliseconds (basin-hop moves of a fit bring ρ near 0 often).  Only a ρ still inconclusive on the finest grid is searched between its nodes, by
-        local minimizations from the lowest nodes of the weakest cells, and a node <= 0 is polished by one, so that
-        the error says where ρ is smallest.  The cost is one grid evaluation (0.25 ms at La = 15 and 30) for a ρ
-        clearly away from 0; a ρ with a deep narrow minimum (the boost k = 5: min/mean = 1/600) needs grids up to
-        degree 512 (about 0.1 s).
+        :func:`derivative_bounds`; the bound is of second order in the node spacing.  When it is not positive the grid
+        degree is raised (at least doubled, up to ``max_grid_lmax``) until the bound is positive or a node is not; a
+        grid of degree 128 or 256 costs a fraction of a millisecond at La <= 15, a local minimization tens of
+        milliseconds (basin-hop moves of a fit bring ρ near 0 often).  Only a ρ still inconclusive on the finest grid is
+        searched between its nodes, by local minimizations from the lowest nodes of the weakest cells, and a node <= 0
+        is polished by one, so that the error says where ρ is smallest.  The cost is one grid evaluation (0.25 ms at La
+        = 15 and 30) for a ρ clearly away from 0; a ρ with a deep narrow minimum (the boost k = 5: min/mean = 1/600)
+        needs grids up to degree 512 (about 0.1 s).
 
         Returns
         -------
