@@ -86,24 +86,34 @@ def shspec(*args: str, timeout: float | None = None) -> dict:
             "wall_s": time.perf_counter() - t, "stderr_tail": lines[-8:]}
 
 
-def star(work: Path) -> dict:
-    mesh = star_mesh(work / "star10k.obj")
-    run = shspec("fit", "--target", f"mesh:{mesh}", "--out", str(work / "star"))
-    s = json.loads((work / "star" / "summary.json").read_text())
+def fit_fields(s: dict) -> dict:
+    """What the summary ``s`` of a mesh target's ``shspec fit`` says: the plan, the starts, the comparison with the
+    cMCF factors and its ratios to the prediction."""
     surface, plan = s["surface"], s["surface_plan"]
-    return {**run, "plan": {k: plan[k] for k in ("lmax_factor", "numeig", "lmax", "predicted", "floor", "noise",
-                                                  "reference_misfit", "feasible")},
+    return {"plan": {k: plan[k] for k in ("lmax_factor", "numeig", "lmax", "predicted", "floor", "noise",
+                                          "reference_misfit", "feasible")},
             "successes": s["successes"], "starts_run": len(s["starts"]), "surface": surface,
             "factor_error_over_predicted": surface["factor_error"] / plan["predicted"],
             "error_bar_over_measured": surface["error_bar"] / surface["factor_error"]}
 
 
+def validate_fields(s: dict) -> dict:
+    """What the summary ``s`` of ``shspec validate`` says: the fit step's status and record, and the Hausdorff
+    distances of the re-embedded cMCF factors and fit."""
+    return {"status_fit": s["status"]["fit"], "hausdorff_cmcf": s["hausdorff_relative"],
+            "hausdorff_fit": (s["fit_embedding"] or {}).get("hausdorff_relative"), "fit": s["fit"]}
+
+
+def star(work: Path) -> dict:
+    mesh = star_mesh(work / "star10k.obj")
+    run = shspec("fit", "--target", f"mesh:{mesh}", "--out", str(work / "star"))
+    return {**run, **fit_fields(json.loads((work / "star" / "summary.json").read_text()))}
+
+
 def star_validate(work: Path) -> dict:
     mesh = star_mesh(work / "star10k.obj")
     run = shspec("validate", "--target", f"mesh:{mesh}", "--out", str(work / "validate"))
-    s = json.loads((work / "validate" / "summary.json").read_text())
-    return {**run, "status_fit": s["status"]["fit"], "hausdorff_cmcf": s["hausdorff_relative"],
-            "hausdorff_fit": (s["fit_embedding"] or {}).get("hausdorff_relative"), "fit": s["fit"]}
+    return {**run, **validate_fields(json.loads((work / "validate" / "summary.json").read_text()))}
 
 
 def one_of_the_stars(name: str):
@@ -111,19 +121,14 @@ def one_of_the_stars(name: str):
     def case(work: Path) -> dict:
         mesh = star_mesh(work / f"{name}.obj", *STARS[name])
         out = {"seed_degree_amplitude": STARS[name]}
-        for command in ("fit", "validate"):
+        for command, fields in (("fit", fit_fields), ("validate", validate_fields)):
             quiet = ["--quiet"] if command == "fit" else []  # validate has no progress display to turn off
             run = shspec(command, "--target", f"mesh:{mesh}", "--out", str(work / command), *quiet,
                          timeout=GOALS["star_wall_s"])
-            summary = work / command / "summary.json"
-            s = json.loads(summary.read_text()) if summary.exists() else None
-            if s is not None and command == "fit":
-                run.update(successes=s["successes"], surface=s["surface"],
-                           plan={k: s["surface_plan"][k] for k in ("lmax_factor", "numeig", "lmax", "predicted")})
-            elif s is not None:
-                run.update(status=s["status"], hausdorff_cmcf=s["hausdorff_relative"],
-                           hausdorff_fit=(s["fit_embedding"] or {}).get("hausdorff_relative"))
-            run["within_goal"] = bool(s is not None and run["exit_code"] == 0
+            summary = work / command / "summary.json"  # none when stopped at the goal or refused
+            if summary.exists():
+                run.update(fields(json.loads(summary.read_text())))
+            run["within_goal"] = bool(summary.exists() and run["exit_code"] == 0
                                       and run["wall_s"] <= GOALS["star_wall_s"])
             out[command] = run
         factors = cmcf(load_mesh(mesh)).factors  # after the timed runs
