@@ -18,6 +18,9 @@ Cases (``--only NAME`` runs those whose name contains NAME; the others keep thei
   (31, 3, 0.45), (32, 4, 0.7), (33, 3, 0.9), meant to span cMCF factor ranges of about 1:3 to 1:8 (whatever
   they turn out to be is recorded); ``shspec fit`` and ``shspec validate`` with their defaults, each stopped at
   the goal of 15 minutes.
+* ``stars-d``, ``stars-e``: b and c span 1:33 and 1:30, beyond the issue's 1:3 to 1:8; these keep their seeds and
+  degrees with the amplitude bisected on the cMCF factor range alone (for 1:6 and 1:7.5, before any fit of
+  them): (32, 4, 0.40) and (33, 3, 0.55).
 * ``spot-mesh``: ``shspec fit --target mesh:spot_600 --model mesh --out D``: the log-factor correlation.
 * ``validate-spot``, ``validate-blub``: ``shspec validate`` on the full-resolution meshes: a complete report, or the
   one-line diagnosis of the fit step.
@@ -55,7 +58,8 @@ GOALS = {"star_wall_s": 900, "star_log_correlation": 0.98, "star_factor_error": 
 
 
 #: The stars of issue 49 (module notes): seed, degree and amplitude of log r.
-STARS = {"stars-a": (31, 3, 0.45), "stars-b": (32, 4, 0.7), "stars-c": (33, 3, 0.9)}
+STARS = {"stars-a": (31, 3, 0.45), "stars-b": (32, 4, 0.7), "stars-c": (33, 3, 0.9), "stars-d": (32, 4, 0.40),
+         "stars-e": (33, 3, 0.55)}
 
 
 def star_mesh(path: Path, seed: int = 7, degree: int = 3, amplitude: float = 0.75) -> Path:

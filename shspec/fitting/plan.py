@@ -36,7 +36,7 @@ from ..inverse.schedule import (DEFAULT_STAGE_MAX_ITER, default_hop_degree, degr
                                 parity_ramp, parse_schedule)
 from ..inverse.target import Target
 from ..mesh.model import MeshModel
-from ..mesh.progress import mesh_progress
+from ..mesh.progress import announce, mesh_progress
 from ..mesh.refine import eigenvalue_errors, trusted_numeig
 from ..mesh.triangle_mesh import TriangleMesh
 from ..core.parallel import make_executor, stop_executor, usable_cores
@@ -324,19 +324,24 @@ def _plan_surface(p: _Planning) -> None:
     r = p.request
     target = _target_of(r, DEFAULT_LMAX, default_numeig(r.mesh_size()), TRUTH_DEGREE)
     target = target.with_noise(r.noise) if r.noise is not None else _refined(p, target, subdivision_spectra(target))
+    if r.progress:
+        announce("planning La and K by the floor of the basis and the target's errors, then polishing the best "
+                 "expansion of the cMCF factors against the spectrum (a minute or two)")
     plan = plan_surface_fit(target)
     if plan.beyond_basis:
         raise BeyondBasisError(plan.diagnosis())
     if not plan.feasible:
         p.say(f"warning: {plan.diagnosis()}")
     why = f"the surface plan: predicted error of rho against the cMCF factors {plan.predicted:.2g}"
-    p.lmax_factor = p.choose("lmax_factor", plan.lmax_factor, f"{why} (floor {plan.floor:.2g}, the target's errors "
-                             f"alone {plan.noise:.2g})")
-    p.numeig = p.choose("numeig", plan.numeig, "the fewest eigenvalues within 10 % of the best predicted error")
+    p.lmax_factor = p.choose("lmax_factor", plan.lmax_factor, f"{why} (floor {plan.floor:.2g}, bias {plan.bias or plan.floor:.2g}, "
+                             f"the target's errors alone {plan.noise:.2g}; the fewest coefficients within 10 % of "
+                             f"the best prediction, {plan.best_predicted:.2g})")
+    p.numeig = p.choose("numeig", plan.numeig, f"the fewest with {SEARCH_NUMEIG_FACTOR:g} eigenvalues per coefficient "
+                        "(all there are, if fewer)")
     p.lmax = p.choose("lmax", plan.lmax, "each eigenvalue converged to a tenth of its error")
     rel = plan.fit_errors[1:] / target.eigenvalues[1:plan.numeig]
     p.say(f"the fit is held to the target's errors and the misfit of the best degree-{plan.lmax_factor} expansion "
-          f"of its cMCF factors: {rel.min():.1g} to {rel.max():.1g} (relative)")
+          f"of its cMCF factors polished against the spectrum: {rel.min():.1g} to {rel.max():.1g} (relative)")
     p.surface_plan, p.target = plan, plan.fitted_target(target)
 
 

@@ -56,8 +56,9 @@ def surface_record(result: FitResult) -> dict | None:
     (:meth:`~shspec.spectral_model.SpectralModel.approximation`): the best solution, aligned with the truth, at the
     vertices of the cMCF sphere against c — area-weighted relative L2 error, Pearson correlation and RMS of the
     logarithms — beside the model's floor, the error of its best approximation of c, and the error bar against c,
-    √(floor² + bar²) with the bar of the target's errors (:class:`~shspec.inverse.identifiability.Identifiability`).
-    None otherwise."""
+    √(floor² + bar²) with the bar of the target's errors (:class:`~shspec.inverse.identifiability.Identifiability`),
+    the floor raised to the surface plan's bias where it has one (its reference polished against the spectrum,
+    :class:`~shspec.fitting.surface_plan.SurfacePlan`).  None otherwise."""
     samples = result.target.factor_samples()
     if samples is None:
         return None
@@ -66,10 +67,14 @@ def surface_record(result: FitResult) -> dict | None:
     if best is None:
         return None
     out = {"floor": best[1], "truth_range": [float(c.min()), float(c.max())]}
+    bias = (result.plan.get("surface_plan") or {}).get("bias")
+    if bias is not None:
+        out["bias"] = bias
     bar = result.identifiability().noise_error
     if bar is not None and np.isfinite(bar):
-        # the floor, which no spectrum can lower, and the spread the errors leave about it
-        out["error_bar"] = float(np.hypot(best[1], bar))
+        # the floor (or the bias of a fit of the spectrum), which no spectrum can lower, and the spread the errors
+        # leave about it
+        out["error_bar"] = float(np.hypot(max(best[1], bias or 0.0), bar))
     try:
         aligned = result.alignment()
     except NotPositiveError as exc:
@@ -137,19 +142,34 @@ def summary(result: FitResult) -> dict:
     return out
 
 
+#: A measured error beyond this multiple of its linearized bar says the bar's assumption (the truth's basin) fails.
+_BAR_HOLDS = 2.0
+
+
 def rho_error(ident, surface: dict | None = None) -> dict:
     """The one error of the fitted ρ to read, and what it is: ``{"value": relative L2 error or None, "meaning": ...}``.
 
     A fit that did not succeed has none (a residual at a local minimum says nothing of the distance to the truth).
-    Otherwise: against a mesh's cMCF factors, the error bar of the surface record (the basis's floor with the
-    target's errors); else the error bar the target's errors leave; else, for an exact target, the error its final
-    residual leaves (linearized).  ``expected_error`` of a planned fit is the same kind of bar predicted before the
-    fit, at a random start of the fit's law."""
+    Otherwise: against a mesh's cMCF factors, the error measured after alignment (the surface record), which says
+    whether the error bar of the basis's floor with the target's errors holds (a fit within the target's errors can
+    lie in another basin, beyond the linearized bar); without an alignment, that bar; else the error bar the
+    target's errors leave; else, for an exact target, the error its final residual leaves (linearized).
+    ``expected_error`` of a planned fit is the same kind of bar predicted before the fit, at a random start of the
+    fit's law."""
     if ident.converged is False:
         return {"value": None, "meaning": "unknown: the fit did not converge to its target, and a residual left at a "
                 "local minimum says nothing about the distance to the truth"}
     if ident.underdetermined:
         return {"value": None, "meaning": "unknown: the matched eigenvalues do not determine every direction of rho"}
+    if surface is not None and surface.get("factor_error") is not None:
+        bar = surface.get("error_bar")
+        expected = "" if bar is None else (
+            f"; expected within {bar:.2g} (surface.error_bar: the basis's floor, or the plan's bias, with the "
+            "target's errors)"
+            + (", which assumes the fit in the factors' own basin: this one is not" if surface["factor_error"]
+               > _BAR_HOLDS * bar else ""))
+        return {"value": surface["factor_error"], "meaning": "relative L2 error against the mesh's cMCF factors, "
+                f"measured after Moebius and O(3) alignment (surface.factor_error){expected}"}
     if surface is not None and surface.get("error_bar") is not None:
         return {"value": surface["error_bar"], "meaning": "expected relative L2 error against the mesh's cMCF "
                 "factors: the floor of the basis with the target's errors (surface.error_bar)"}

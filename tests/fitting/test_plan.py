@@ -167,6 +167,26 @@ def test_the_summary_names_the_one_error_of_rho_to_read():
     assert error["value"] is None and error["meaning"].startswith("unknown: ")
 
 
+def test_a_mesh_fits_error_is_the_one_measured_against_its_factors_and_says_when_its_bar_fails():
+    """A 10k star fitted at La 7 within its errors lay 9 % from its cMCF factors against a bar of 1.7 %: another basin
+    within the target's errors, which the linearized bar cannot see.  The measured error is the one to read."""
+    from types import SimpleNamespace
+
+    from shspec.inverse.output import rho_error
+
+    ident = SimpleNamespace(converged=True, underdetermined=False, noise_error=0.015, error_estimate=None)
+    far = rho_error(ident, {"floor": 0.012, "error_bar": 0.017, "factor_error": 0.091})
+    assert far["value"] == 0.091 and "measured after" in far["meaning"]
+    assert "0.017" in far["meaning"] and "this one is not" in far["meaning"]
+    near = rho_error(ident, {"floor": 0.012, "error_bar": 0.017, "factor_error": 0.03})
+    assert near["value"] == 0.03 and "0.017" in near["meaning"] and "this one is not" not in near["meaning"]
+    unaligned = rho_error(ident, {"floor": 0.012, "error_bar": 0.017, "skipped": "no alignment: ..."})
+    assert unaligned["value"] == 0.017 and "expected" in unaligned["meaning"]
+    stalled = rho_error(SimpleNamespace(**{**vars(ident), "converged": False}),
+                        {"floor": 0.012, "error_bar": 0.017, "factor_error": 0.091})
+    assert stalled["value"] is None and stalled["meaning"].startswith("unknown: ")
+
+
 def test_a_folder_given_as_a_spectrum_or_a_mesh_is_named_as_a_folder(tmp_path, capsys):
     for scheme in ("spectrum", "mesh"):
         assert main(["fit", "--target", f"{scheme}:{tmp_path}", "--out", str(tmp_path / "out")]) == 1
