@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from ..core.atomic import atomic_output_files, check_writable
+from ..core.parallel import usable_cores
 from ..embed.embed import EmbedOptions, embed
 from ..errors import InvalidArgumentError, OutputError
 from ..pipeline.validation import ValidationOptions, validate_target, write_report
@@ -46,6 +47,10 @@ def register(subparsers) -> None:
     q.add_argument("--accuracy", type=float, default=ValidationOptions.accuracy,
                    help="relative error of rho the plan aims for (default %(default)g)")
     q.add_argument("--no-fit", action="store_true", help="skip the inverse fit")
+    q.add_argument("--starts", type=int, default=None, metavar="N",
+                   help="random starts of the fit, stopped at the first success (default: one per usable core)")
+    q.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="processes the starts run on (default: one per start and usable core; 1: serial)")
     q.add_argument("--up", choices=("x", "y", "z"), default="z", help="vertical axis of the renderings (default z)")
     q.add_argument("--merge-vertices", action="store_true",
                    help="weld vertices at identical positions (a vertex soup; always done for STL)")
@@ -94,8 +99,10 @@ def _validate(args) -> int:
     if args.out.exists() and not args.out.is_dir():
         raise OutputError(f"--out {args.out} is a file; give a directory")
     mesh = load_mesh(Path(path), merge_vertices=args.merge_vertices or None)
+    starts = args.starts if args.starts is not None else usable_cores()
     opt = ValidationOptions(numeig=args.numeig, lmax=args.lmax, lmax_factor=args.lmax_factor, accuracy=args.accuracy,
-                            fit=not args.no_fit)
+                            fit=not args.no_fit, fit_starts=starts,
+                            fit_workers=args.workers if args.workers is not None else min(starts, usable_cores()))
     result = validate_target(mesh, opt, name=Path(path).stem, log=print)
     report = write_report(result, args.out, up=args.up)
     s = result.summary

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..core.atomic import atomic_outputs, save_figure, write_text
 from ..core.checks import check_float, check_int, check_options
+from ..core.parallel import make_executor, stop_executor
 from ..embed.ambiguity import AmbiguityReport, detect_ambiguity
 from ..embed.render import render_mesh
 from ..embed.distances import SurfaceDistance, surface_distance
@@ -82,7 +83,11 @@ class ValidationOptions:
     fit : bool
         Run the inverse fit.
     fit_starts : int
-        Random starts of the fit.
+        Random starts of the fit, stopped at the first success.
+    fit_workers : int
+        Processes the starts run on at once (1: here, one after the other; the command line's default is one per
+        start and usable core).  A process pool re-imports the calling script: guard it with
+        ``if __name__ == "__main__":``.
     ambiguity : bool
         Run the bump/dip test on the re-embedding.
     embed : EmbedOptions
@@ -95,6 +100,7 @@ class ValidationOptions:
     accuracy: float = DEFAULT_ACCURACY
     fit: bool = True
     fit_starts: int = 1
+    fit_workers: int = 1
     ambiguity: bool = True
     embed: EmbedOptions = field(default_factory=EmbedOptions)
 
@@ -103,6 +109,7 @@ class ValidationOptions:
             if getattr(self, name) is not None:
                 check_int(getattr(self, name), f"ValidationOptions.{name}", minimum=2 if name == "numeig" else 1)
         check_int(self.fit_starts, "ValidationOptions.fit_starts", minimum=1)
+        check_int(self.fit_workers, "ValidationOptions.fit_workers", minimum=1)
         check_float(self.accuracy, "ValidationOptions.accuracy", positive=True)
         if not isinstance(self.embed, EmbedOptions):
             raise InvalidArgumentError("ValidationOptions.embed must be EmbedOptions")
@@ -281,8 +288,15 @@ def _fitted(run: _Run, flow: CMCFResult, target, plan, la: int, lb: int):
 
 
 def _fit_and_embed(run: _Run, flow: CMCFResult, target, plan, la: int, lb: int):
-    result = run.timed("fit", fit, target, LogHarmonicModel(lb, la),
-                       FitOptions(starts=run.opt.fit_starts, progress=False))
+    workers = min(run.opt.fit_workers, run.opt.fit_starts)
+    executor = make_executor(workers) if workers > 1 else None
+    try:
+        result = run.timed("fit", lambda: fit(target, LogHarmonicModel(lb, la),
+                                              FitOptions(starts=run.opt.fit_starts, progress=False),
+                                              executor=executor))
+    finally:
+        if executor is not None:
+            stop_executor(executor)  # starts a success made unneeded are not waited for
     best, k = result.best, target.numeig
     run.spectra["fit_harmonic"] = result.model.eigenvalues(best.params, k)
     info = {"seconds": run.times["fit"], "residual_chi2_reached": best.success,

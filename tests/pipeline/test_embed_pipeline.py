@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import matplotlib
@@ -183,3 +184,16 @@ def test_a_truth_that_cannot_be_aligned_is_not_called_a_failed_fit(tmp_path):
     status = json.loads((tmp_path / "v" / "summary.json").read_text())["status"]["fit"]
     assert status.startswith("ok; its alignment with the cMCF factors and its re-embedding skipped: the cMCF "
                              "factors' expansion of degree 16 is not positive")
+
+
+@pytest.mark.slow
+def test_validations_fit_races_its_starts_on_processes_with_a_serial_runs_result():
+    """shspec validate fits one start per usable core on as many processes (its single start on one core ran past
+    15 min on a 10k star whose fit from two racing starts took 2 min); the pool's fit is the serial one's."""
+    opt = ValidationOptions(numeig=12, lmax=8, lmax_factor=2, fit_starts=2, ambiguity=False)
+    serial, pooled = (validate_target(blob(2), dataclasses.replace(opt, fit_workers=w), name="blob2").summary["fit"]
+                      for w in (1, 2))
+    for key in ("factor_error", "residual_chi2_reached", "log_correlation"):
+        assert serial[key] == pooled[key]
+    with pytest.raises(InvalidArgumentError, match="fit_workers"):
+        ValidationOptions(fit_workers=0)
