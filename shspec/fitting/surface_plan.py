@@ -120,7 +120,8 @@ class SurfacePlan:
         The error bar of the target's own errors σ alone at (La, K): what the spectrum determines.
     bias : float or None
         How far the polished reference is from the factors (relative L2 over the cMCF sphere's vertices, area
-        weights): the error a fit of this degree in the factors' own basin keeps, against them; None unpolished.
+        weights): the error a fit of this degree in the factors' own basin keeps, against them; None unpolished or
+        for a target without a truth to align with.
     reference_misfit : float
         max_i δ_i / λ_i: how far the best expansion's spectrum is from the target (relative).
     accuracy : float
@@ -381,15 +382,22 @@ def _misfit_included(target: MeshTarget, row: PlanRow, u: np.ndarray, noise: np.
     model = LogHarmonicModel(basis_degree_for(k, la), la)
     scaled[0] += np.sqrt(4 * np.pi) * np.log(target.area_estimate() / model.area(u))
     lb, reference_eigenvalues = _basis(scaled, la, 0.1 * noise[1:k])
+    fit_errors, misfit, bar = _held_to(target, LogHarmonicModel(lb, la), scaled, reference_eigenvalues)
+    return _Candidate(row=row, lmax=lb, reference=scaled, fit_errors=fit_errors, reference_misfit=misfit,
+                      predicted=float(np.hypot(row.floor, bar)))
+
+
+def _held_to(target: MeshTarget, model: LogHarmonicModel, u: np.ndarray, eigenvalues: np.ndarray) -> tuple:
+    """(the errors (K,) a fit is held to with the misfit of a reference ``u`` whose K eigenvalues are
+    ``eigenvalues``, its largest relative misfit, the error bar of those errors at ``u``)."""
+    k = eigenvalues.size
     lam = target.eigenvalues[:k]
-    misfit = reference_eigenvalues - lam
+    misfit = eigenvalues - lam
     fit_errors = np.hypot(target.errors[:k], misfit)
     fit_errors[0] = 0.0
-    bar = identifiability_by_numeig(LogHarmonicModel(lb, la), scaled, [k], fit_area=True,
+    bar = identifiability_by_numeig(model, u, [k], fit_area=True,
                                     noise=np.r_[1.0, fit_errors[1:] / lam[1:]])[0].noise_error
-    return _Candidate(row=row, lmax=lb, reference=scaled, fit_errors=fit_errors,
-                      reference_misfit=float(np.max(np.abs(misfit[1:]) / lam[1:])),
-                      predicted=float(np.hypot(row.floor, bar)))
+    return fit_errors, float(np.max(np.abs(misfit[1:]) / lam[1:])), bar
 
 
 #: Iterations of the polish of the chosen reference against the target's spectrum.
@@ -404,16 +412,14 @@ def _polished(target: MeshTarget, cand: _Candidate, noise: np.ndarray) -> _Candi
     held = dataclasses.replace(target.first(k), errors=cand.fit_errors)
     best = fit(held, model, FitOptions(starts=1, schedule=None, basin_hops=0, max_iter=_POLISH_ITER, progress=False),
                init=cand.reference).best
-    lam = target.eigenvalues[:k]
-    misfit = best.eigenvalues - lam
-    fit_errors = np.hypot(target.errors[:k], misfit)
-    fit_errors[0] = 0.0
-    # the fit's gauge moves rho by a Moebius map: compare as the fit's own surface record does, after alignment
-    aligned = align(model.to_factor(best.params), target.truth)
-    sphere = target.sphere
-    bias = weighted_misfit(target.factors, sample_harmonic(aligned.aligned, sphere.vertices), vertex_areas(sphere))
-    bar = identifiability_by_numeig(model, best.params, [k], fit_area=True,
-                                    noise=np.r_[1.0, fit_errors[1:] / lam[1:]])[0].noise_error
+    fit_errors, misfit, bar = _held_to(target, model, best.params, best.eigenvalues)
+    bias = None
+    if target.truth is not None:
+        # the fit's gauge moves rho by a Moebius map: compare as the fit's own surface record does, after alignment
+        aligned = align(model.to_factor(best.params), target.truth)
+        sphere = target.sphere
+        bias = float(weighted_misfit(target.factors, sample_harmonic(aligned.aligned, sphere.vertices),
+                                     vertex_areas(sphere)))
     return _Candidate(row=cand.row, lmax=cand.lmax, reference=best.params, fit_errors=fit_errors,
-                      reference_misfit=float(np.max(np.abs(misfit[1:]) / lam[1:])),
-                      predicted=float(np.hypot(max(cand.row.floor, bias), bar)), bias=float(bias))
+                      reference_misfit=misfit, predicted=float(np.hypot(max(cand.row.floor, bias or 0.0), bar)),
+                      bias=bias)

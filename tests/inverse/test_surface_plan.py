@@ -101,6 +101,8 @@ def test_the_plan_balances_the_floor_of_the_basis_against_the_targets_errors():
     assert plan.predicted >= chosen.predicted and plan.predicted >= plan.bias > 0
     loose = unpolished(plan.lmax_factor, plan.numeig)
     assert loose.bias is None
+    blind = plan_surface_fit(dataclasses.replace(target, truth=None), accuracy=0.05)  # nothing to align the bias with
+    assert blind.bias is None and blind.lmax_factor == plan.lmax_factor and blind.predicted <= plan.predicted
     chi2 = [np.sum(((LogHarmonicModel(plan.lmax, plan.lmax_factor).eigenvalues(p.reference, plan.numeig)
                      - target.eigenvalues[:plan.numeig])[1:] / loose.fit_errors[1:]) ** 2) for p in (plan, loose)]
     assert chi2[0] < chi2[1]
