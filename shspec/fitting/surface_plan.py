@@ -184,7 +184,9 @@ class SurfacePlan:
         return (f"plan: log rho of degree La = {self.lmax_factor} from K = {self.numeig} eigenvalues on the basis "
                 f"Lb = {self.lmax}; predicted error of rho against the cMCF factors {self.predicted:.2g} (floor of "
                 f"the degree-{self.lmax_factor} expansion {self.floor:.2g}; the target's errors alone "
-                f"{self.noise:.2g}; the expansion's spectrum misses the target by up to {self.reference_misfit:.2g})")
+                f"{self.noise:.2g}; the expansion's spectrum misses the target by up to {self.reference_misfit:.2g}"
+                + ("" if self.bias is None else f"; polished against the spectrum, it is {self.bias:.2g} from the "
+                   "factors") + ")")
 
     def diagnosis(self) -> str | None:
         """None when the plan reaches its accuracy; else one line: why not, and what it would take."""
