@@ -333,7 +333,8 @@ def _plan_surface(p: _Planning) -> None:
     if not plan.feasible:
         p.say(f"warning: {plan.diagnosis()}")
     why = f"the surface plan: predicted error of rho against the cMCF factors {plan.predicted:.2g}"
-    p.lmax_factor = p.choose("lmax_factor", plan.lmax_factor, f"{why} (floor {plan.floor:.2g}, bias {plan.bias or plan.floor:.2g}, "
+    bias = plan.bias if plan.bias is not None else plan.floor
+    p.lmax_factor = p.choose("lmax_factor", plan.lmax_factor, f"{why} (floor {plan.floor:.2g}, bias {bias:.2g}, "
                              f"the target's errors alone {plan.noise:.2g}; the fewest coefficients within 10 % of "
                              f"the best prediction, {plan.best_predicted:.2g})")
     p.numeig = p.choose("numeig", plan.numeig, f"the fewest with {SEARCH_NUMEIG_FACTOR:g} eigenvalues per coefficient "

@@ -355,10 +355,12 @@ def _choose(target: MeshTarget, rows: list, refs: dict, noise: np.ndarray) -> tu
 
 def _search_row(rows, la: int) -> PlanRow | None:
     """The candidate of degree La that a search is given: the fewest eigenvalues at :data:`SEARCH_NUMEIG_FACTOR`
-    per coefficient (the most there are, if fewer), among those with a finite error bar."""
-    finite = [r for r in rows if r.lmax_factor == la and np.isfinite(r.predicted)]
+    per coefficient (the most there are, if fewer), among those with a finite error bar (the most eigenvalues when
+    none has one: an error bar of infinity)."""
+    own = [r for r in rows if r.lmax_factor == la]
+    finite = [r for r in own if np.isfinite(r.predicted)]
     if not finite:
-        return None
+        return max(own, key=lambda r: r.numeig) if own else None
     enough = [r for r in finite if r.numeig >= SEARCH_NUMEIG_FACTOR * (la + 1) ** 2]
     return min(enough, key=lambda r: r.numeig) if enough else max(finite, key=lambda r: r.numeig)
 
