@@ -328,7 +328,7 @@ def plan_surface_fit(target: MeshTarget, *, accuracy: float = DEFAULT_ACCURACY, 
             rows.append(PlanRow(la, r.numeig, floor, r.noise_error))
     pick, best = _choose(target, rows, refs, noise)
     if polish and min(r.floor for r in rows) <= accuracy:  # a plan beyond the basis is refused: no polish needed
-        pick = _polished(target, pick, noise)
+        pick = _polished(target, pick)
     return SurfacePlan(lmax_factor=pick.row.lmax_factor, numeig=pick.row.numeig, lmax=pick.lmax,
                        predicted=pick.predicted, floor=pick.row.floor, noise=pick.row.noise, bias=pick.bias,
                        reference_misfit=pick.reference_misfit, accuracy=accuracy,
@@ -408,7 +408,7 @@ def _held_to(target: MeshTarget, model: LogHarmonicModel, u: np.ndarray, eigenva
 _POLISH_ITER = 200
 
 
-def _polished(target: MeshTarget, cand: _Candidate, noise: np.ndarray) -> _Candidate:
+def _polished(target: MeshTarget, cand: _Candidate) -> _Candidate:
     """``cand`` with its reference polished against the target's spectrum (module notes): the fit's errors from the
     polished reference's misfit, its error against the factors as the bias, and the prediction from both."""
     la, k = cand.row.lmax_factor, cand.row.numeig
